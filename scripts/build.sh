@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# Configures (once) and builds the native library, the Python module, the staged add-on and the zip.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/deps.sh
+BUILD=${PENUMBRA_BUILD_DIR:-build}
+if [ ! -f "$BUILD/CMakeCache.txt" ]; then
+  cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython_EXECUTABLE=/usr/bin/python3.11 ${PENUMBRA_CMAKE_ARGS:-}
+fi
+cmake --build "$BUILD" -j"$(nproc)"
+cmake --build "$BUILD" --target addon_zip
