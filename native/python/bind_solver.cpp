@@ -1,0 +1,216 @@
+// numpy in, numpy out. The GIL is released for every native computation; the progress callback
+// takes it back only for the call itself.
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+
+#include "bake/exr.h"
+#include "bindings.h"
+#include "penumbra.h"
+
+namespace py = pybind11;
+
+namespace penumbra::python {
+namespace {
+
+template <class T>
+using Array = py::array_t<T, py::array::c_style>;
+
+// Checks dtype and shape of an argument and names it in the error: a wrong dtype is refused rather
+// than silently converted, since a float64 array from Python costs 10-25x in export time.
+template <class T>
+Array<T> checked(const py::handle& obj, const char* name, std::vector<py::ssize_t> shape) {
+    if (!py::isinstance<py::array>(obj))
+        throw py::value_error(std::string(name) + " must be a numpy array");
+    py::array a = py::reinterpret_borrow<py::array>(obj);
+    if (!a.dtype().is(py::dtype::of<T>()))
+        throw py::value_error(std::string(name) + " must have dtype " +
+                              std::string(py::str(py::dtype::of<T>())) + ", got " +
+                              std::string(py::str(a.dtype())));
+    if (a.ndim() != py::ssize_t(shape.size()))
+        throw py::value_error(std::string(name) + " must have " + std::to_string(shape.size()) +
+                              " dimensions, got " + std::to_string(a.ndim()));
+    for (size_t i = 0; i < shape.size(); ++i)
+        if (shape[i] >= 0 && a.shape(i) != shape[i])
+            throw py::value_error(std::string(name) + ": dimension " + std::to_string(i) + " must be " +
+                                  std::to_string(shape[i]) + ", got " + std::to_string(a.shape(i)));
+    return Array<T>::ensure(a);
+}
+
+class PyProgress : public Progress {
+public:
+    explicit PyProgress(py::object cb) : cb_(std::move(cb)) {}
+    bool update(const char* stage, double fraction) override {
+        if (cb_.is_none()) return true;
+        py::gil_scoped_acquire gil;
+        try {
+            py::object r = cb_(stage, fraction);
+            return r.is_none() || r.cast<bool>();
+        } catch (py::error_already_set& e) {
+            // An exception in the user's callback stops the bake; it is reported, not swallowed.
+            error_ = e.what();
+            return false;
+        }
+    }
+    std::string error_;
+
+private:
+    py::object cb_;
+};
+
+Settings parseSettings(const py::dict& d) {
+    Settings s;
+    for (auto item : d) {
+        std::string k = py::str(item.first);
+        py::handle v = item.second;
+        if (k == "epsilon") s.epsilon = v.cast<double>();
+        else if (k == "min_size") s.minSize = v.cast<double>();
+        else if (k == "visibility_rays") s.visibilityRays = v.cast<int>();
+        else if (k == "max_iterations") s.maxIterations = v.cast<int>();
+        else if (k == "tolerance") s.tolerance = v.cast<double>();
+        else if (k == "refine_passes") s.refinePasses = v.cast<int>();
+        else if (k == "threads") s.threads = v.cast<int>();
+        else throw py::value_error("unknown setting '" + k + "'");
+    }
+    return s;
+}
+
+py::dict reportDict(const Report& r) {
+    py::dict d, times;
+    for (auto& [k, v] : r.seconds) times[py::str(k)] = v;
+    d["times"] = times;
+    d["polygons"] = r.polygons;
+    d["elements"] = r.elements;
+    d["leaves"] = r.leaves;
+    d["links"] = r.links;
+    d["rays"] = r.rays;
+    d["iterations"] = r.iterations;
+    d["refine_passes"] = r.refinePasses;
+    d["residual"] = r.residual;
+    d["converged"] = r.converged;
+    d["warnings"] = r.warnings;
+    return d;
+}
+
+}  // namespace
+
+static py::exception<Cancelled>* cancelledType = nullptr;
+
+void bindSolver(py::module_& m) {
+    static py::exception<Cancelled> cancelled(m, "Cancelled");
+    cancelledType = &cancelled;
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const Cancelled& e) {
+            PyErr_SetString(cancelledType->ptr(), e.what());
+        } catch (const InputError& e) {
+            PyErr_SetString(PyExc_ValueError, e.what());
+        }
+    });
+    m.attr("EMIT_BACK") = int(kEmitBack);
+    m.attr("LIGHT_ONLY") = int(kLightOnly);
+
+    py::class_<Solution, std::shared_ptr<Solution>>(m, "Solution")
+        .def_property_readonly("report", [](const Solution& s) { return reportDict(s.report()); })
+        .def("radiance",
+             [](const Solution& s, py::object points, py::object normals) {
+                 auto p = checked<float>(points, "points", {-1, 3});
+                 auto n = checked<float>(normals, "normals", {-1, 3});
+                 if (p.shape(0) != n.shape(0)) throw py::value_error("points and normals differ in length");
+                 size_t count = size_t(p.shape(0));
+                 const float* pp = p.data();
+                 const float* np = n.data();
+                 for (size_t i = 0; i < count * 3; ++i)
+                     if (!std::isfinite(pp[i]) || !std::isfinite(np[i]))
+                         throw py::value_error("points/normals contain NaN or infinite values");
+                 std::vector<float> out;
+                 {
+                     py::gil_scoped_release nogil;
+                     out = s.radiance(pp, np, count);
+                 }
+                 Array<float> result({py::ssize_t(count), py::ssize_t(3)});
+                 std::copy(out.begin(), out.end(), result.mutable_data());
+                 return result;
+             },
+             py::arg("points"), py::arg("normals"))
+        .def("bake_lightmap",
+             [](const Solution& s, py::object positions, py::object uvs, int width, int height, int margin) {
+                 auto p = checked<float>(positions, "positions", {-1, 3, 3});
+                 auto u = checked<float>(uvs, "uvs", {-1, 3, 2});
+                 if (p.shape(0) != u.shape(0)) throw py::value_error("positions and uvs differ in length");
+                 if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+                     throw py::value_error("width and height must be in [1, 16384]");
+                 if (margin < 0) throw py::value_error("margin must be >= 0");
+                 LightmapInput in;
+                 in.positions = p.data();
+                 in.uvs = u.data();
+                 in.triangles = size_t(p.shape(0));
+                 for (size_t i = 0; i < in.triangles * 9; ++i)
+                     if (!std::isfinite(in.positions[i])) throw py::value_error("positions contain NaN or infinite values");
+                 in.width = width;
+                 in.height = height;
+                 in.margin = margin;
+                 std::vector<float> img;
+                 {
+                     py::gil_scoped_release nogil;
+                     img = s.bakeLightmap(in);
+                 }
+                 Array<float> result({py::ssize_t(height), py::ssize_t(width), py::ssize_t(4)});
+                 std::copy(img.begin(), img.end(), result.mutable_data());
+                 return result;
+             },
+             py::arg("positions"), py::arg("uvs"), py::arg("width"), py::arg("height"), py::arg("margin") = 4);
+
+    m.def(
+        "solve",
+        [](py::object vertices, py::object polygons, py::object reflectance, py::object emission,
+           py::object flags, py::object objectIndex, std::vector<std::string> objectNames, py::dict settings,
+           py::object progress) {
+            auto v = checked<float>(vertices, "vertices", {-1, 3});
+            auto p = checked<int32_t>(polygons, "polygons", {-1, 4});
+            py::ssize_t np = p.shape(0);
+            auto r = checked<float>(reflectance, "reflectance", {np, 3});
+            auto e = checked<float>(emission, "emission", {np, 3});
+            auto f = checked<uint8_t>(flags, "flags", {np});
+            auto o = checked<int32_t>(objectIndex, "object_index", {np});
+            SceneInput in;
+            in.vertices = v.data();
+            in.numVertices = size_t(v.shape(0));
+            in.polygons = p.data();
+            in.numPolygons = size_t(np);
+            in.reflectance = r.data();
+            in.emission = e.data();
+            in.flags = f.data();
+            in.objectIndex = o.data();
+            in.objectNames = std::move(objectNames);
+            Settings s = parseSettings(settings);
+            PyProgress prog(progress);
+            std::unique_ptr<Solution> sol;
+            try {
+                py::gil_scoped_release nogil;
+                sol = penumbra::solve(in, s, &prog);
+            } catch (const Cancelled&) {
+                if (!prog.error_.empty()) throw std::runtime_error("progress callback raised: " + prog.error_);
+                throw;
+            }
+            return std::shared_ptr<Solution>(std::move(sol));
+        },
+        py::arg("vertices"), py::arg("polygons"), py::arg("reflectance"), py::arg("emission"), py::arg("flags"),
+        py::arg("object_index"), py::arg("object_names"), py::arg("settings") = py::dict(),
+        py::arg("progress") = py::none());
+
+    m.def(
+        "write_exr",
+        [](const std::string& path, py::object pixels) {
+            auto a = checked<float>(pixels, "pixels", {-1, -1, -1});
+            int h = int(a.shape(0)), w = int(a.shape(1)), c = int(a.shape(2));
+            py::gil_scoped_release nogil;
+            writeExr(path, a.data(), w, h, c);
+        },
+        py::arg("path"), py::arg("pixels"));
+}
+
+}  // namespace penumbra::python

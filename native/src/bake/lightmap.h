@@ -1,0 +1,27 @@
+// Lightmap texels from UV triangles. A texel takes the radiance at the point of its triangle
+// nearest to its centre: at the centre itself when covered, else at the closest point of a triangle
+// that still overlaps the texel, so island borders are never sampled off the surface. Texels outside
+// every island are filled by dilation so that bilinear lookups never fetch empty texels.
+#pragma once
+#include <vector>
+
+#include "bake/radiance_field.h"
+
+namespace penumbra {
+
+struct LightmapInput {
+    const float* positions = nullptr;  // T x 3 x 3, world space
+    const float* uvs = nullptr;        // T x 3 x 2
+    size_t triangles = 0;
+    int width = 0, height = 0, margin = 0;
+};
+
+// Returns height x width x 4 floats, rows bottom-to-top (v = 0 first), alpha 1 everywhere.
+// `offset` is subtracted from positions to reach the field's recentred coordinates.
+std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput& in, const Vec3& offset,
+                                int threads);
+
+// Fills texels with coverage == 0 from covered neighbours, one ring per pass, `passes` times.
+void dilate(std::vector<float>& rgba, std::vector<uint8_t>& covered, int width, int height, int passes);
+
+}  // namespace penumbra

@@ -1,0 +1,70 @@
+// Quadtree elements on the scene's polygons. Clusters (issue 3) will sit above the polygon roots as
+// another kind of node; links, gather and push/pull only ever see node indices.
+#pragma once
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace penumbra {
+
+struct Element {
+    std::array<Vec3, 4> v;  // corners, counter-clockwise; v[3] unused for triangles
+    uint8_t n = 0;          // 3 or 4
+    uint8_t depth = 0;
+    uint8_t numChildren = 0;
+    int polygon = -1;       // scene polygon it lies on
+    int parent = -1;
+    std::atomic<int> firstChild{-1};  // children are contiguous; set once, read by refiner threads
+    uint64_t key = 0;       // identity independent of creation order: seeds ray samples
+    Vec3 center;
+    double area = 0;
+    Rgb B;                  // radiosity (exitance), W/m^2
+    Rgb irradiance;         // gathered at this level from its links
+
+    bool isLeaf() const { return firstChild.load(std::memory_order_acquire) < 0; }
+    Polygon polygonShape() const;
+    // Point at parametric (s, t) in [0,1]^2: bilinear on quads, (s, t) -> barycentric on triangles
+    // with s + t <= 1 folded back inside.
+    Vec3 pointAt(double s, double t) const;
+};
+
+// Element arena with stable addresses: refiner threads subdivide while others read.
+class Hierarchy {
+public:
+    explicit Hierarchy(const Scene& scene);
+    const Scene& scene() const { return scene_; }
+    size_t size() const { return size_.load(std::memory_order_acquire); }
+    size_t numRoots() const { return numRoots_; }
+    Element& operator[](size_t i) { return blocks_[i >> kBlockBits][i & kBlockMask]; }
+    const Element& operator[](size_t i) const { return blocks_[i >> kBlockBits][i & kBlockMask]; }
+
+    // Creates the children of e if it has none (thread-safe) and returns the first child's index.
+    int subdivide(int e);
+    int firstChild(int e) const { return (*this)[e].firstChild.load(std::memory_order_acquire); }
+
+    // Renumbers all elements in depth-first order from the roots so that indices do not depend on
+    // which thread created what. Returns old index -> new index.
+    std::vector<int> canonicalize();
+    size_t countLeaves() const;
+
+private:
+    static constexpr int kBlockBits = 14;
+    static constexpr size_t kBlockMask = (size_t(1) << kBlockBits) - 1;
+    int allocate(int count);  // caller holds mutex_
+    void initRoot(Element& e, const ScenePolygon& p, int polygon);
+
+    const Scene& scene_;
+    std::vector<std::unique_ptr<Element[]>> blocks_;  // reserved up front, so never reallocated
+    std::atomic<size_t> size_{0};
+    size_t numRoots_ = 0;
+    std::mutex mutex_;
+};
+
+void finishElement(Element& e);  // centre and area from the corners
+
+}  // namespace penumbra

@@ -1,0 +1,132 @@
+#include "penumbra.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "refine/refiner.h"
+#include "solve/solver.h"
+#include "util/parallel.h"
+#include "visibility/ray_caster.h"
+
+namespace penumbra {
+namespace {
+
+class Stopwatch {
+public:
+    double lap() {
+        auto now = std::chrono::steady_clock::now();
+        double s = std::chrono::duration<double>(now - last_).count();
+        last_ = now;
+        return s;
+    }
+
+private:
+    std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
+void validateSettings(const Settings& s) {
+    auto bad = [](const std::string& m) { throw InputError("setting " + m); };
+    if (!(s.epsilon > 0) || !std::isfinite(s.epsilon)) bad("epsilon must be a positive number");
+    if (!(s.minSize > 0) || !(s.minSize < 1)) bad("min_size must be in (0, 1)");
+    if (s.visibilityRays < 1 || s.visibilityRays > 256) bad("visibility_rays must be in [1, 256]");
+    if (s.maxIterations < 1) bad("max_iterations must be at least 1");
+    if (!(s.tolerance > 0) || !(s.tolerance < 1)) bad("tolerance must be in (0, 1)");
+    if (s.refinePasses < 1 || s.refinePasses > 20) bad("refine_passes must be in [1, 20]");
+    if (s.threads < 0) bad("threads must be >= 0");
+}
+
+void sortLinks(std::vector<Link>& links) {
+    std::sort(links.begin(), links.end(), [](const Link& a, const Link& b) {
+        return a.receiver != b.receiver ? a.receiver < b.receiver : a.source < b.source;
+    });
+}
+
+void remapLinks(std::vector<Link>& links, const std::vector<int>& remap) {
+    for (Link& l : links) {
+        l.receiver = remap[l.receiver];
+        l.source = remap[l.source];
+    }
+    sortLinks(links);
+}
+
+}  // namespace
+
+std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, Progress* progress) {
+    validateSettings(settings);
+    auto sol = std::unique_ptr<Solution>(new Solution());
+    Report& rep = sol->report_;
+    sol->threads_ = resolveThreads(settings.threads);
+    Stopwatch clock;
+
+    sol->scene_ = std::make_unique<Scene>(buildScene(in));
+    const Scene& scene = *sol->scene_;
+    rep.polygons = scene.polygons.size();
+    rep.warnings = scene.warnings;
+    sol->hierarchy_ = std::make_unique<Hierarchy>(scene);
+    Hierarchy& h = *sol->hierarchy_;
+    rep.seconds["scene"] = clock.lap();
+    checkProgress(progress, "visibility", 0.0);
+
+    RayCaster rays(scene);
+    rep.seconds["visibility_setup"] = clock.lap();
+
+    Refiner refiner(h, rays, settings);
+    Solver solver(h, settings);
+    std::vector<Link>& links = sol->links_;
+    links = refiner.linkAll(progress);
+    remapLinks(links, h.canonicalize());
+    rep.seconds["refine"] = clock.lap();
+    SolveResult res = solver.solve(links, progress);
+    rep.seconds["solve"] = clock.lap();
+    rep.refinePasses = 1;
+    int totalIterations = res.iterations;
+    for (int pass = 1; pass < settings.refinePasses; ++pass) {
+        bool changed = false;
+        links = refiner.rerefine(links, progress, changed);
+        remapLinks(links, h.canonicalize());
+        rep.seconds["refine"] += clock.lap();
+        if (!changed) break;
+        res = solver.solve(links, progress);
+        totalIterations += res.iterations;
+        rep.refinePasses = pass + 1;
+        rep.seconds["solve"] += clock.lap();
+    }
+    rep.iterations = totalIterations;
+    rep.residual = res.residual;
+    rep.converged = res.converged;
+    if (!res.converged)
+        rep.warnings.push_back("solver stopped after max_iterations with estimated error " +
+                               std::to_string(res.residual));
+
+    sol->field_ = RadianceField(h);
+    rep.seconds["reconstruct"] = clock.lap();
+    rep.elements = h.size();
+    rep.leaves = h.countLeaves();
+    rep.links = links.size();
+    rep.rays = refiner.stats().rays;
+    checkProgress(progress, "solve", 1.0);
+    return sol;
+}
+
+std::vector<float> Solution::radiance(const float* points, const float* normals, size_t n) const {
+    std::vector<float> out(n * 3);
+    const Vec3 off = scene_->offset;
+    parallelFor(n, threads_, 1024, [&](size_t b, size_t e, int) {
+        for (size_t i = b; i < e; ++i) {
+            Vec3 p{points[i * 3], points[i * 3 + 1], points[i * 3 + 2]};
+            Vec3 nn{normals[i * 3], normals[i * 3 + 1], normals[i * 3 + 2]};
+            Rgb r = field_.radiance(p - off, normalize(nn));
+            out[i * 3] = float(r.x);
+            out[i * 3 + 1] = float(r.y);
+            out[i * 3 + 2] = float(r.z);
+        }
+    });
+    return out;
+}
+
+std::vector<float> Solution::bakeLightmap(const LightmapInput& in) const {
+    return penumbra::bakeLightmap(field_, in, scene_->offset, threads_);
+}
+
+}  // namespace penumbra

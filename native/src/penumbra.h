@@ -1,0 +1,51 @@
+// The one entry to the native solver: a validated scene and settings in, a Solution out.
+//   scene (arrays) -> Hierarchy -> Refiner -> links -> Solver -> RadianceField -> bake
+#pragma once
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bake/lightmap.h"
+#include "bake/radiance_field.h"
+#include "hierarchy/element.h"
+#include "scene/scene.h"
+#include "solve/link.h"
+#include "solve/settings.h"
+#include "util/progress.h"
+
+namespace penumbra {
+
+struct Report {
+    std::map<std::string, double> seconds;  // per stage
+    size_t polygons = 0, elements = 0, leaves = 0, links = 0, rays = 0;
+    int iterations = 0, refinePasses = 0;
+    double residual = 0;
+    bool converged = false;
+    std::vector<std::string> warnings;
+};
+
+class Solution {
+public:
+    const Report& report() const { return report_; }
+    // Outgoing reflected radiance (B - B_e)/pi at world-space points, n x 3 each.
+    std::vector<float> radiance(const float* points, const float* normals, size_t n) const;
+    std::vector<float> bakeLightmap(const LightmapInput& in) const;
+    const Scene& scene() const { return *scene_; }
+    const Hierarchy& hierarchy() const { return *hierarchy_; }
+    const std::vector<Link>& links() const { return links_; }
+
+private:
+    friend std::unique_ptr<Solution> solve(const SceneInput&, const Settings&, Progress*);
+    std::unique_ptr<Scene> scene_;
+    std::unique_ptr<Hierarchy> hierarchy_;
+    std::vector<Link> links_;
+    RadianceField field_;
+    Report report_;
+    int threads_ = 1;
+};
+
+// Throws InputError for bad input (message names the object), Cancelled when progress says stop.
+std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, Progress* progress);
+
+}  // namespace penumbra

@@ -1,0 +1,213 @@
+#include "refine/refiner.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "geometry/form_factor.h"
+#include "util/parallel.h"
+
+namespace penumbra {
+namespace {
+
+// Deterministic per-link random numbers: the sample pattern of a link depends only on the identity
+// of its two elements, never on thread timing or allocation order.
+struct Rng {
+    uint64_t s;
+    explicit Rng(uint64_t seed) : s(seed ? seed : 0x1234567ull) {}
+    double next() {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        return double(s >> 11) * (1.0 / 9007199254740992.0);
+    }
+};
+
+// Quadrature points on an element in its (s, t) parametrisation: 2x2 Gauss on quads, the
+// degree-2 three-point rule on triangles; the centre is added for the spread.
+int samplePoints(const Element& e, Vec3* pts) {
+    if (e.n == 4) {
+        const double a = 0.5 - 0.5 / std::sqrt(3.0), b = 0.5 + 0.5 / std::sqrt(3.0);
+        pts[0] = e.pointAt(a, a); pts[1] = e.pointAt(b, a);
+        pts[2] = e.pointAt(b, b); pts[3] = e.pointAt(a, b);
+        return 4;
+    }
+    pts[0] = e.pointAt(1.0 / 6, 1.0 / 6);
+    pts[1] = e.pointAt(2.0 / 3, 1.0 / 6);
+    pts[2] = e.pointAt(1.0 / 6, 2.0 / 3);
+    return 3;
+}
+
+}  // namespace
+
+Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)
+    : h_(h), rays_(rays), settings_(s) {
+    const Scene& sc = h.scene();
+    threshold_ = s.epsilon * sc.maxEmission;
+    double minEdge = s.minSize * sc.diagonal;
+    minArea_ = minEdge * minEdge;
+    lift_ = 1e-6 * sc.diagonal;
+    strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
+}
+
+bool Refiner::canSplit(int e) const { return h_[e].area > minArea_ && h_[e].depth < 250; }
+
+double Refiner::linkError(const Link& l) const {
+    const Element& r = h_[l.receiver];
+    const Element& s = h_[l.source];
+    const ScenePolygon& rp = h_.scene().polygons[r.polygon];
+    double rhoB = std::max({rp.rho.x * s.B.x, rp.rho.y * s.B.y, rp.rho.z * s.B.z});
+    double spread = std::max(double(l.Fspread), l.partial() ? double(l.Fmean) : 0.0);
+    return rhoB * spread;
+}
+
+bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
+    const Element& r = h_[ri];
+    const Element& s = h_[si];
+    const Scene& sc = h_.scene();
+    const Vec3& nr = sc.polygons[r.polygon].normal;
+    const Vec3& ns = sc.polygons[s.polygon].normal;
+    // Light leaves the source's front and enters the receiver's front: some corner of each must be
+    // strictly in front of the other.
+    bool sInFront = false, rInFront = false;
+    for (int k = 0; k < s.n; ++k) sInFront |= dot(s.v[k] - r.v[0], nr) > lift_;
+    for (int k = 0; k < r.n; ++k) rInFront |= dot(r.v[k] - s.v[0], ns) > lift_;
+    if (!sInFront || !rInFront) return false;
+    ++stats_.estimates;
+
+    Polygon sp = s.polygonShape();
+    // The mean comes from the quadrature points; the spread also looks at the centre and the corners,
+    // where the kernel varies most (a corner on the source's edge sees half a hemisphere).
+    Vec3 pts[9];
+    int np = samplePoints(r, pts);
+    int total = np;
+    pts[total++] = r.center;
+    for (int k = 0; k < r.n; ++k) pts[total++] = r.v[k];
+    double sum = 0, fmin = HUGE_VAL, fmax = 0;
+    for (int k = 0; k < total; ++k) {
+        double f = dot(pts[k] - s.v[0], ns) > 0 ? pointToPolygonFormFactor(pts[k], nr, sp) : 0.0;
+        if (k < np) sum += f;
+        fmin = std::min(fmin, f);
+        fmax = std::max(fmax, f);
+    }
+    l.receiver = ri;
+    l.source = si;
+    l.Fmean = float(sum / np);
+    l.Fspread = float(fmax - fmin);
+    l.V = 1;
+    l.F = l.Fmean;
+    return fmax > 0;
+}
+
+void Refiner::estimateVisibility(int ri, int si, Link& l) {
+    const Element& r = h_[ri];
+    const Element& s = h_[si];
+    const Scene& sc = h_.scene();
+    const Vec3 nr = sc.polygons[r.polygon].normal * lift_;
+    const Vec3 ns = sc.polygons[s.polygon].normal * lift_;
+    int m = strata_, n = m * m;
+    Rng rng(r.key ^ (s.key * 0x9E3779B97F4A7C15ull));
+    Vec3 from[256], to[256];
+    n = std::min(n, 256);
+    // Stratified on both ends, with the source strata visited in a shuffled order so that rays do
+    // not all run parallel.
+    int perm[256];
+    for (int i = 0; i < n; ++i) perm[i] = i;
+    for (int i = n - 1; i > 0; --i) std::swap(perm[i], perm[int(rng.next() * (i + 1))]);
+    for (int i = 0; i < n; ++i) {
+        int a = i, b = perm[i];
+        from[i] = r.pointAt((a % m + rng.next()) / m, (a / m + rng.next()) / m) + nr;
+        to[i] = s.pointAt((b % m + rng.next()) / m, (b / m + rng.next()) / m) + ns;
+    }
+    l.V = float(rays_.unoccludedFraction(from, to, n));
+    stats_.rays += size_t(n);
+    l.F = l.Fmean * l.V;
+}
+
+void Refiner::refine(int ri, int si, std::vector<Link>& out) {
+    Link l;
+    if (!estimateUnoccluded(ri, si, l)) return;
+    bool canR = canSplit(ri), canS = canSplit(si);
+    // The kernel is integrated exactly over the source (Lambert's formula), so an unoccluded transfer
+    // only errs through the irradiance varying across the receiver: only splitting the receiver
+    // reduces that. Splitting the source instead would just share the same error among more links.
+    if (linkError(l) > threshold_ && canR) {
+        int c = h_.subdivide(ri);
+        for (int k = 0; k < h_[ri].numChildren; ++k) refine(c + k, si, out);
+        return;
+    }
+    // Rays are spent only once the unoccluded transfer is accurate enough to be linked.
+    estimateVisibility(ri, si, l);
+    if (linkError(l) <= threshold_ || !l.partial() || (!canR && !canS)) {
+        if (l.F > 0) out.push_back(l);
+        return;
+    }
+    // Partial visibility: either side's split narrows down where the shadow boundary runs.
+    if (canR && (!canS || h_[ri].area >= h_[si].area)) {
+        int c = h_.subdivide(ri);
+        for (int k = 0; k < h_[ri].numChildren; ++k) refine(c + k, si, out);
+    } else {
+        int c = h_.subdivide(si);
+        for (int k = 0; k < h_[si].numChildren; ++k) refine(ri, c + k, out);
+    }
+}
+
+std::vector<Link> Refiner::linkAll(Progress* progress) {
+    const Scene& sc = h_.scene();
+    size_t roots = h_.numRoots();
+    std::vector<int> receivers, sources;
+    for (size_t i = 0; i < roots; ++i) {
+        const ScenePolygon& p = sc.polygons[i];
+        if (p.receives && maxComponent(p.rho) > 0) receivers.push_back(int(i));
+        if (maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0) sources.push_back(int(i));
+    }
+    std::vector<std::vector<Link>> perReceiver(receivers.size());
+    std::atomic<size_t> done{0};
+    int threads = resolveThreads(settings_.threads);
+    std::atomic<bool> cancel{false};
+    parallelFor(receivers.size(), threads, 4, [&](size_t b, size_t e, int t) {
+        for (size_t i = b; i < e && !cancel; ++i) {
+            for (int s : sources)
+                if (s != receivers[i]) refine(receivers[i], s, perReceiver[i]);
+            size_t d = ++done;
+            // Only thread 0 talks to the caller: the callback may need the caller's lock (the GIL).
+            if (t == 0 && progress && !progress->update("refine", double(d) / receivers.size()))
+                cancel = true;
+        }
+    });
+    if (cancel) throw Cancelled();
+    std::vector<Link> links;
+    for (auto& v : perReceiver) links.insert(links.end(), v.begin(), v.end());
+    return links;
+}
+
+std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* progress,
+                                    bool& changed) {
+    std::vector<std::vector<Link>> out(links.size() / 256 + 1);
+    std::atomic<bool> anyChange{false}, cancel{false};
+    std::atomic<size_t> done{0};
+    size_t chunks = out.size();
+    parallelFor(chunks, resolveThreads(settings_.threads), 1, [&](size_t b, size_t e, int t) {
+        for (size_t c = b; c < e && !cancel; ++c) {
+            size_t lo = c * 256, hi = std::min(links.size(), lo + 256);
+            for (size_t i = lo; i < hi; ++i) {
+                const Link& l = links[i];
+                bool splittable = canSplit(l.receiver) || (l.partial() && canSplit(l.source));
+                if (linkError(l) > threshold_ && splittable) {
+                    anyChange = true;
+                    refine(l.receiver, l.source, out[c]);
+                } else {
+                    out[c].push_back(l);
+                }
+            }
+            size_t d = ++done;
+            if (t == 0 && progress && !progress->update("refine", double(d) / chunks)) cancel = true;
+        }
+    });
+    if (cancel) throw Cancelled();
+    changed = anyChange;
+    std::vector<Link> result;
+    for (auto& v : out) result.insert(result.end(), v.begin(), v.end());
+    return result;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,162 @@
+#include "scene/scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <sstream>
+
+#include "util/progress.h"
+
+namespace penumbra {
+namespace {
+
+std::string objectName(const SceneInput& in, size_t poly) {
+    int o = in.objectIndex ? in.objectIndex[poly] : -1;
+    if (o >= 0 && size_t(o) < in.objectNames.size()) return "'" + in.objectNames[o] + "'";
+    return "#" + std::to_string(o);
+}
+
+[[noreturn]] void fail(const SceneInput& in, size_t poly, const std::string& what) {
+    std::ostringstream s;
+    s << "object " << objectName(in, poly) << " (face " << poly << "): " << what;
+    throw InputError(s.str());
+}
+
+Vec3 vertex(const SceneInput& in, int32_t i) {
+    const float* p = in.vertices + size_t(i) * 3;
+    return {p[0], p[1], p[2]};
+}
+
+// Splits a quad into two triangles along the diagonal whose halves both face the quad's normal.
+void splitQuad(const Polygon& q, Polygon& t0, Polygon& t1) {
+    Vec3 n = q.areaVector();
+    auto tri = [](const Vec3& a, const Vec3& b, const Vec3& c) {
+        Polygon p;
+        p.push(a); p.push(b); p.push(c);
+        return p;
+    };
+    Polygon a0 = tri(q.v[0], q.v[1], q.v[2]), a1 = tri(q.v[0], q.v[2], q.v[3]);
+    if (dot(a0.areaVector(), n) > 0 && dot(a1.areaVector(), n) > 0) {
+        t0 = a0; t1 = a1;
+    } else {
+        t0 = tri(q.v[0], q.v[1], q.v[3]);
+        t1 = tri(q.v[1], q.v[2], q.v[3]);
+    }
+}
+
+bool planarConvexQuad(const Polygon& q) {
+    Vec3 n = q.normal();
+    double size = std::sqrt(q.area());
+    for (int i = 0; i < 4; ++i) {
+        if (std::fabs(dot(q.v[i] - q.v[0], n)) > 1e-4 * size) return false;  // warped
+        Vec3 e0 = q.v[(i + 1) % 4] - q.v[i], e1 = q.v[(i + 2) % 4] - q.v[(i + 1) % 4];
+        if (dot(cross(e0, e1), n) <= 0) return false;  // reflex or degenerate corner
+    }
+    return true;
+}
+
+}  // namespace
+
+Scene buildScene(const SceneInput& in) {
+    Scene scene;
+    scene.objectNames = in.objectNames;
+    if (in.numPolygons == 0) throw InputError("nothing to bake: the scene has no faces");
+    if (!in.vertices || !in.polygons || !in.reflectance || !in.emission || !in.flags || !in.objectIndex)
+        throw InputError("internal: missing input array");
+
+    // Pass 1: validate every face and find the bounds of what is referenced.
+    Bounds raw;
+    for (size_t p = 0; p < in.numPolygons; ++p) {
+        const int32_t* idx = in.polygons + p * 4;
+        int nv = idx[3] < 0 ? 3 : 4;
+        if (idx[3] < -1) fail(in, p, "negative vertex index " + std::to_string(idx[3]));
+        for (int k = 0; k < nv; ++k) {
+            if (idx[k] < 0 || size_t(idx[k]) >= in.numVertices)
+                fail(in, p, "vertex index " + std::to_string(idx[k]) + " out of range [0, " +
+                                std::to_string(in.numVertices) + ")");
+            Vec3 v = vertex(in, idx[k]);
+            if (!isFinite(v)) fail(in, p, "vertex " + std::to_string(idx[k]) + " is NaN or infinite");
+            raw.extend(v);
+        }
+        for (int c = 0; c < 3; ++c) {
+            float r = in.reflectance[p * 3 + c], e = in.emission[p * 3 + c];
+            if (!std::isfinite(r) || r < 0 || r >= 1) {
+                std::ostringstream s;
+                s << "diffuse albedo " << r << " is outside [0, 1): a surface cannot reflect more light "
+                  << "than it receives (use a base colour below 1)";
+                fail(in, p, s.str());
+            }
+            if (!std::isfinite(e) || e < 0) {
+                std::ostringstream s;
+                s << "emission " << e << " is negative or not finite";
+                fail(in, p, s.str());
+            }
+        }
+    }
+    scene.offset = raw.center();
+    double rawDiagonal = length(raw.diagonal());
+    // Faces below this area are numerically zero at the scene's scale (and at float32 input precision).
+    double minArea = std::pow(1e-7 * rawDiagonal, 2);
+
+    std::map<int, size_t> degenerateByObject;
+    auto add = [&](const Polygon& geom, size_t p, bool back) {
+        ScenePolygon sp;
+        sp.geom = geom;
+        if (back) std::reverse(sp.geom.v.begin(), sp.geom.v.begin() + sp.geom.n);
+        sp.normal = sp.geom.normal();
+        sp.area = sp.geom.area();
+        uint8_t f = in.flags[p];
+        sp.rho = {in.reflectance[p * 3], in.reflectance[p * 3 + 1], in.reflectance[p * 3 + 2]};
+        sp.emission = {in.emission[p * 3], in.emission[p * 3 + 1], in.emission[p * 3 + 2]};
+        sp.receives = !(f & kLightOnly);
+        if (f & kLightOnly) sp.rho = {};
+        sp.occludes = !(f & kLightOnly) && !back;
+        sp.object = in.objectIndex[p];
+        sp.input = int(p);
+        scene.maxEmission = std::max(scene.maxEmission, maxComponent(sp.emission));
+        scene.polygons.push_back(sp);
+    };
+
+    for (size_t p = 0; p < in.numPolygons; ++p) {
+        const int32_t* idx = in.polygons + p * 4;
+        int nv = idx[3] < 0 ? 3 : 4;
+        Polygon g;
+        for (int k = 0; k < nv; ++k) g.push(vertex(in, idx[k]) - scene.offset);
+        if (g.area() <= minArea) {
+            ++degenerateByObject[in.objectIndex[p]];
+            ++scene.degenerateSkipped;
+            continue;
+        }
+        Polygon parts[2];
+        int count = 1;
+        parts[0] = g;
+        if (nv == 4 && !planarConvexQuad(g)) {
+            splitQuad(g, parts[0], parts[1]);
+            count = 2;
+        }
+        for (int k = 0; k < count; ++k) {
+            if (parts[k].area() <= minArea) continue;
+            add(parts[k], p, false);
+            if (in.flags[p] & kEmitBack && !(in.flags[p] & kLightOnly)) add(parts[k], p, true);
+        }
+    }
+    for (auto& [obj, count] : degenerateByObject) {
+        std::string name = obj >= 0 && size_t(obj) < in.objectNames.size() ? in.objectNames[obj]
+                                                                           : "#" + std::to_string(obj);
+        scene.warnings.push_back("object '" + name + "': skipped " + std::to_string(count) +
+                                 " zero-area face(s)");
+    }
+    bool anyReceiver = false;
+    for (auto& sp : scene.polygons) {
+        for (int k = 0; k < sp.geom.n; ++k) scene.bounds.extend(sp.geom.v[k]);
+        anyReceiver |= sp.receives;
+    }
+    if (!anyReceiver) throw InputError("nothing to bake: the scene has no mesh faces with area");
+    if (!(scene.maxEmission > 0))
+        throw InputError("nothing emits light: add an area light or an emissive material "
+                         "(point, spot and sun lights are not supported yet)");
+    scene.diagonal = length(scene.bounds.diagonal());
+    return scene;
+}
+
+}  // namespace penumbra

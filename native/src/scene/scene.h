@@ -1,0 +1,59 @@
+// The scene as the solver sees it: planar convex triangles and quads with a reflectance and an
+// emission each, validated and recentred. Everything upstream (Blender, tests, fuzzers) speaks to the
+// solver only through SceneInput.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "geometry/polygon.h"
+
+namespace penumbra {
+
+enum PolygonFlags : uint8_t {
+    kEmitBack = 1,   // emits B_e from the back side too (Cycles mesh emitters are two-sided)
+    kLightOnly = 2,  // a lamp: emits, but neither receives, reflects nor blocks
+};
+
+// Borrowed views of the caller's arrays (row-major). Nothing is copied until buildScene.
+struct SceneInput {
+    const float* vertices = nullptr;      // numVertices x 3
+    size_t numVertices = 0;
+    const int32_t* polygons = nullptr;    // numPolygons x 4, -1 in column 3 for triangles
+    size_t numPolygons = 0;
+    const float* reflectance = nullptr;   // numPolygons x 3
+    const float* emission = nullptr;      // numPolygons x 3, exitance B_e in W/m^2
+    const uint8_t* flags = nullptr;       // numPolygons, PolygonFlags
+    const int32_t* objectIndex = nullptr; // numPolygons, index into objectNames
+    std::vector<std::string> objectNames;
+};
+
+struct ScenePolygon {
+    Polygon geom;   // recentred world coordinates, counter-clockwise around `normal`
+    Vec3 normal;
+    double area = 0;
+    Rgb rho, emission;
+    bool receives = true;   // takes part as a receiver and reflector
+    bool occludes = true;   // put in the ray-tracing scene (a back-side copy shares its twin's triangles)
+    int object = -1;
+    int input = -1;         // index of the input polygon it came from
+};
+
+struct Scene {
+    std::vector<ScenePolygon> polygons;
+    std::vector<std::string> objectNames;
+    Vec3 offset;            // subtracted from every input coordinate: Embree works in float32
+    Bounds bounds;          // of the recentred scene
+    double diagonal = 0;
+    double maxEmission = 0; // brightest emitted radiosity over channels, the scale of all thresholds
+    size_t degenerateSkipped = 0;
+    std::vector<std::string> warnings;
+};
+
+// Validates and converts. Throws InputError naming the object for NaN/Inf coordinates, indices out
+// of range, albedo outside [0, 1), negative or non-finite emission, an empty scene or one where
+// nothing emits. Zero-area faces are skipped (and counted); non-planar or non-convex quads are split
+// into two triangles.
+Scene buildScene(const SceneInput& in);
+
+}  // namespace penumbra

@@ -1,0 +1,17 @@
+// The user's knobs. Thresholds are relative (to the brightest emitter, to the scene's size) so that
+// a scene baked in millimetres or kilometres refines the same way.
+#pragma once
+
+namespace penumbra {
+
+struct Settings {
+    double epsilon = 0.002;      // max radiosity error of a link, relative to the brightest emitter
+    double minSize = 0.01;       // smallest element edge, relative to the scene's bounding-box diagonal
+    int visibilityRays = 16;     // rays per link estimate (rounded to a square number of strata)
+    int maxIterations = 1000;    // gather + push/pull sweeps per refinement pass
+    double tolerance = 1e-4;     // stop when the estimated remaining relative error falls below this
+    int refinePasses = 3;        // refine -> solve rounds (later passes refine with indirect light)
+    int threads = 0;             // 0: all cores
+};
+
+}  // namespace penumbra

@@ -1,0 +1,87 @@
+#include "solve/solver.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "util/parallel.h"
+
+namespace penumbra {
+
+void Solver::gather(const std::vector<Link>& links) {
+    if (groupStart_.empty()) {
+        for (size_t i = 0; i < links.size(); ++i)
+            if (i == 0 || links[i].receiver != links[i - 1].receiver) groupStart_.push_back(i);
+        groupStart_.push_back(links.size());
+    }
+    for (size_t i = 0; i < h_.size(); ++i) h_[i].irradiance = Rgb{};
+    size_t groups = groupStart_.size() - 1;
+    // Each receiver's links form one run, handled by one thread: the sum order is fixed.
+    parallelFor(groups, resolveThreads(settings_.threads), 512, [&](size_t b, size_t e, int) {
+        for (size_t g = b; g < e; ++g) {
+            Rgb sum;
+            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
+                sum += h_[links[i].source].B * double(links[i].F);
+            h_[links[groupStart_[g]].receiver].irradiance = sum;
+        }
+    });
+}
+
+Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected) {
+    Element& e = h_[ei];
+    Rgb total = down + e.irradiance;
+    Rgb B;
+    int fc = h_.firstChild(ei);
+    if (fc < 0) {
+        const ScenePolygon& p = h_.scene().polygons[e.polygon];
+        Rgb refl = mul(p.rho, total);
+        B = p.emission + refl;
+        change += e.area * maxComponent(Rgb{std::fabs(B.x - e.B.x), std::fabs(B.y - e.B.y),
+                                            std::fabs(B.z - e.B.z)});
+        reflected += e.area * maxComponent(refl);
+    } else {
+        for (int k = 0; k < e.numChildren; ++k) B += pushPull(fc + k, total, change, reflected) * h_[fc + k].area;
+        B = B / e.area;
+    }
+    e.B = B;
+    return B;
+}
+
+double Solver::sweep(const std::vector<Link>& links) {
+    gather(links);
+    size_t roots = h_.numRoots();
+    std::vector<double> change(roots, 0.0), refl(roots, 0.0);
+    parallelFor(roots, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
+        for (size_t r = b; r < e; ++r) pushPull(int(r), Rgb{}, change[r], refl[r]);
+    });
+    double c = 0, rf = 0;
+    for (size_t r = 0; r < roots; ++r) { c += change[r]; rf += refl[r]; }
+    lastReflected_ = rf;
+    return c;
+}
+
+SolveResult Solver::solve(const std::vector<Link>& links, Progress* progress) {
+    SolveResult res;
+    groupStart_.clear();  // the links may have been re-refined since the last solve
+    double prev = -1;
+    for (int it = 1; it <= settings_.maxIterations; ++it) {
+        double change = sweep(links);
+        res.iterations = it;
+        double scale = std::max(lastReflected_, 1e-300);
+        double rel = change / scale;
+        // Jacobi errors shrink geometrically; the ratio of successive changes predicts what is left
+        // (rel * q / (1 - q)), which is what the tolerance bounds, not the last step alone.
+        double q = prev > 0 ? change / prev : 0.0;
+        double remaining = q > 0 && q < 1 ? rel * q / (1 - q) : rel;
+        res.residual = remaining;
+        prev = change;
+        if (lastReflected_ <= 0 || (it > 1 && remaining < settings_.tolerance)) {
+            res.converged = true;
+            break;
+        }
+        double frac = std::log(std::max(remaining, 1e-300)) / std::log(settings_.tolerance);
+        checkProgress(progress, "solve", std::clamp(frac, 0.0, 1.0));
+    }
+    return res;
+}
+
+}  // namespace penumbra

@@ -1,0 +1,37 @@
+// Gather and push/pull, iterated to convergence (Jacobi sweeps over the link hierarchy).
+#pragma once
+#include <vector>
+
+#include "hierarchy/element.h"
+#include "solve/link.h"
+#include "solve/settings.h"
+#include "util/progress.h"
+
+namespace penumbra {
+
+struct SolveResult {
+    int iterations = 0;
+    double residual = 0;  // estimated remaining relative error of the reflected radiosity
+    bool converged = false;
+};
+
+class Solver {
+public:
+    Solver(Hierarchy& h, const Settings& s) : h_(h), settings_(s) {}
+    // `links` must be sorted by receiver. Radiosities already in the hierarchy are the start value.
+    SolveResult solve(const std::vector<Link>& links, Progress* progress);
+
+private:
+    // One gather (irradiance from links) followed by one push/pull; returns the L1 change of B.
+    double sweep(const std::vector<Link>& links);
+    void gather(const std::vector<Link>& links);
+    // Pushes irradiance down, returns the area-weighted radiosity pulled up.
+    Rgb pushPull(int e, const Rgb& down, double& change, double& reflected);
+
+    Hierarchy& h_;
+    Settings settings_;
+    std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
+    double lastReflected_ = 0;
+};
+
+}  // namespace penumbra

@@ -1,0 +1,80 @@
+#include "solve/solver.h"
+
+#include <gtest/gtest.h>
+
+#include "penumbra.h"
+#include "testing/scenes.h"
+
+namespace penumbra {
+namespace {
+
+// A closed box whose walls all emit E and reflect rho: every point sees only walls, so B = E/(1-rho).
+void checkFurnace(double rho, int tessellation, int threads) {
+    auto box = testing::furnaceBox(2.0, tessellation, {rho, rho * 0.5, 0.1}, {1.0, 2.0, 3.0});
+    Settings s;
+    s.threads = threads;
+    s.tolerance = 1e-6;
+    auto sol = solve(box.input(), s, nullptr);
+    const Hierarchy& h = sol->hierarchy();
+    Rgb expect{1.0 / (1 - rho), 2.0 / (1 - rho * 0.5), 3.0 / (1 - 0.1)};
+    size_t leaves = 0;
+    for (size_t i = 0; i < h.size(); ++i) {
+        if (!h[i].isLeaf()) continue;
+        ++leaves;
+        for (int c = 0; c < 3; ++c) ASSERT_NEAR(h[i].B[c], expect[c], 0.005 * expect[c]) << "leaf " << i;
+    }
+    EXPECT_GT(leaves, 6u);
+    EXPECT_TRUE(sol->report().converged);
+}
+
+TEST(Furnace, HalfAlbedo) { checkFurnace(0.5, 1, 1); }
+TEST(Furnace, HighAlbedoTessellatedTwoThreads) { checkFurnace(0.9, 3, 2); }
+
+TEST(Furnace, ReflectedRadianceIsUniform) {
+    double rho = 0.6;
+    auto box = testing::furnaceBox(1.0, 2, {rho, rho, rho}, {1, 1, 1});
+    Settings s;
+    s.tolerance = 1e-6;
+    auto sol = solve(box.input(), s, nullptr);
+    // Points on the floor (z = 0, normal +z), including corners and polygon edges.
+    std::vector<float> pts, nrm;
+    for (double x : {0.0, 0.13, 0.5, 0.77, 1.0})
+        for (double y : {0.0, 0.31, 0.5, 1.0}) {
+            pts.insert(pts.end(), {float(x), float(y), 0.0f});
+            nrm.insert(nrm.end(), {0.0f, 0.0f, 1.0f});
+        }
+    auto L = sol->radiance(pts.data(), nrm.data(), pts.size() / 3);
+    double expect = (1.0 / (1 - rho) - 1.0) / M_PI;  // reflected part only
+    for (float v : L) EXPECT_NEAR(v, expect, 0.005 * expect);
+}
+
+TEST(Solve, ThreadCountDoesNotChangeTheResult) {
+    auto box = testing::furnaceBox(1.0, 2, {0.7, 0.5, 0.3}, {0, 0, 0});
+    box.emission[0] = box.emission[1] = box.emission[2] = 10.0f;  // one emitting face
+    // An occluder inside, so that visibility rays matter.
+    box.quad({0.3, 0.3, 0.5}, {0.7, 0.3, 0.5}, {0.7, 0.7, 0.5}, {0.3, 0.7, 0.5}, {0.5, 0.5, 0.5}, {});
+    box.quad({0.3, 0.3, 0.5}, {0.3, 0.7, 0.5}, {0.7, 0.7, 0.5}, {0.7, 0.3, 0.5}, {0.5, 0.5, 0.5}, {});
+    Settings s1, s2;
+    s1.threads = 1;
+    s2.threads = 2;
+    auto a = solve(box.input(), s1, nullptr);
+    auto b = solve(box.input(), s2, nullptr);
+    ASSERT_EQ(a->hierarchy().size(), b->hierarchy().size());
+    ASSERT_EQ(a->links().size(), b->links().size());
+    for (size_t i = 0; i < a->hierarchy().size(); ++i)
+        for (int c = 0; c < 3; ++c) ASSERT_EQ(a->hierarchy()[i].B[c], b->hierarchy()[i].B[c]);
+}
+
+class CancelAt : public Progress {
+public:
+    bool update(const char* stage, double) override { return std::string(stage) != "solve"; }
+};
+
+TEST(Solve, ProgressReturningFalseCancels) {
+    auto box = testing::furnaceBox(1.0, 2, {0.5, 0.5, 0.5}, {1, 1, 1});
+    CancelAt cancel;
+    EXPECT_THROW(solve(box.input(), Settings{}, &cancel), Cancelled);
+}
+
+}  // namespace
+}  // namespace penumbra

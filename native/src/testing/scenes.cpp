@@ -1,0 +1,65 @@
+#include "testing/scenes.h"
+
+namespace penumbra::testing {
+
+int TestScene::quad(Vec3 a, Vec3 b, Vec3 c, Vec3 d, Rgb rho, Rgb emit, uint8_t flag, int object) {
+    int base = int(vertices.size() / 3);
+    for (const Vec3& v : {a, b, c, d}) {
+        vertices.push_back(float(v.x));
+        vertices.push_back(float(v.y));
+        vertices.push_back(float(v.z));
+    }
+    for (int k = 0; k < 4; ++k) polygons.push_back(base + k);
+    for (double x : {rho.x, rho.y, rho.z}) reflectance.push_back(float(x));
+    for (double x : {emit.x, emit.y, emit.z}) emission.push_back(float(x));
+    flags.push_back(flag);
+    objectIndex.push_back(object);
+    return int(flags.size()) - 1;
+}
+
+int TestScene::triangle(Vec3 a, Vec3 b, Vec3 c, Rgb rho, Rgb emit, uint8_t flag, int object) {
+    int i = quad(a, b, c, c, rho, emit, flag, object);
+    polygons.back() = -1;
+    vertices.resize(vertices.size() - 3);
+    return i;
+}
+
+SceneInput TestScene::input() const {
+    SceneInput in;
+    in.vertices = vertices.data();
+    in.numVertices = vertices.size() / 3;
+    in.polygons = polygons.data();
+    in.numPolygons = flags.size();
+    in.reflectance = reflectance.data();
+    in.emission = emission.data();
+    in.flags = flags.data();
+    in.objectIndex = objectIndex.data();
+    in.objectNames = names;
+    return in;
+}
+
+TestScene furnaceBox(double s, int n, Rgb rho, Rgb emit) {
+    TestScene t;
+    // For each axis and side, a grid of quads wound so the normal points into the box.
+    for (int axis = 0; axis < 3; ++axis)
+        for (int side = 0; side < 2; ++side) {
+            int u = (axis + 1) % 3, v = (axis + 2) % 3;
+            for (int i = 0; i < n; ++i)
+                for (int j = 0; j < n; ++j) {
+                    auto P = [&](double a, double b) {
+                        Vec3 p;
+                        p[axis] = side * s;
+                        p[u] = a * s / n;
+                        p[v] = b * s / n;
+                        return p;
+                    };
+                    Vec3 p0 = P(i, j), p1 = P(i + 1, j), p2 = P(i + 1, j + 1), p3 = P(i, j + 1);
+                    // (u, v, axis) is right-handed, so p0..p3 face +axis: inward on side 0.
+                    if (side == 0) t.quad(p0, p1, p2, p3, rho, emit);
+                    else t.quad(p0, p3, p2, p1, rho, emit);
+                }
+        }
+    return t;
+}
+
+}  // namespace penumbra::testing

@@ -1,0 +1,25 @@
+// Small scenes built in code for the unit tests: they own their arrays and hand out a SceneInput.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace penumbra::testing {
+
+struct TestScene {
+    std::vector<float> vertices, reflectance, emission;
+    std::vector<int32_t> polygons, objectIndex;
+    std::vector<uint8_t> flags;
+    std::vector<std::string> names{"test"};
+
+    // Appends a quad (counter-clockwise around its front normal) and returns its index.
+    int quad(Vec3 a, Vec3 b, Vec3 c, Vec3 d, Rgb rho, Rgb emit, uint8_t flag = 0, int object = 0);
+    int triangle(Vec3 a, Vec3 b, Vec3 c, Rgb rho, Rgb emit, uint8_t flag = 0, int object = 0);
+    SceneInput input() const;
+};
+
+// Closed axis-aligned box [0,s]^3 whose six faces look inward, each split into n x n quads.
+TestScene furnaceBox(double size, int n, Rgb rho, Rgb emit);
+
+}  // namespace penumbra::testing

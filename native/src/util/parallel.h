@@ -1,0 +1,41 @@
+// A fixed, static split of [0, n) over threads: each index is processed by exactly one thread and
+// no result depends on which one, so outputs are bit-identical for any thread count.
+#pragma once
+#include <algorithm>
+#include <exception>
+#include <thread>
+#include <vector>
+
+namespace penumbra {
+
+inline int resolveThreads(int requested) {
+    int hw = int(std::thread::hardware_concurrency());
+    return requested > 0 ? requested : std::max(1, hw);
+}
+
+// body(begin, end, threadIndex). Blocks of `grain` indices are dealt round-robin so uneven work
+// (links near the light refine deeper) spreads over threads.
+template <class F>
+void parallelFor(size_t n, int threads, size_t grain, F&& body) {
+    threads = std::max(1, threads);
+    if (threads == 1 || n <= grain) {
+        body(size_t(0), n, 0);
+        return;
+    }
+    std::vector<std::thread> pool;
+    std::vector<std::exception_ptr> errors(threads);
+    for (int t = 0; t < threads; ++t)
+        pool.emplace_back([&, t] {
+            try {
+                for (size_t b = size_t(t) * grain; b < n; b += size_t(threads) * grain)
+                    body(b, std::min(n, b + grain), t);
+            } catch (...) {
+                errors[t] = std::current_exception();
+            }
+        });
+    for (auto& th : pool) th.join();
+    for (auto& e : errors)
+        if (e) std::rethrow_exception(e);
+}
+
+}  // namespace penumbra

@@ -1,0 +1,93 @@
+#include "visibility/ray_caster.h"
+
+#include <stdexcept>
+#include <vector>
+
+namespace penumbra {
+
+RayCaster::RayCaster(const Scene& scene) {
+    device_ = rtcNewDevice("threads=1");  // the BVH build is small next to the solve; keep it serial
+    if (!device_) throw std::runtime_error("Embree: could not create a device");
+    scene_ = rtcNewScene(device_);
+    std::vector<float> verts;
+    std::vector<unsigned> tris;
+    for (const ScenePolygon& p : scene.polygons) {
+        if (!p.occludes) continue;
+        unsigned base = unsigned(verts.size() / 3);
+        for (int k = 0; k < p.geom.n; ++k) {
+            verts.push_back(float(p.geom.v[k].x));
+            verts.push_back(float(p.geom.v[k].y));
+            verts.push_back(float(p.geom.v[k].z));
+        }
+        for (int k = 1; k + 1 < p.geom.n; ++k) {
+            tris.push_back(base);
+            tris.push_back(base + k);
+            tris.push_back(base + k + 1);
+        }
+    }
+    numTriangles_ = tris.size() / 3;
+    if (numTriangles_ > 0) {
+        RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+        float* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
+            geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), verts.size() / 3));
+        unsigned* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+            geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), numTriangles_));
+        std::copy(verts.begin(), verts.end(), vb);
+        std::copy(tris.begin(), tris.end(), ib);
+        rtcCommitGeometry(geom);
+        rtcAttachGeometry(scene_, geom);
+        rtcReleaseGeometry(geom);
+    }
+    rtcCommitScene(scene_);
+}
+
+RayCaster::~RayCaster() {
+    if (scene_) rtcReleaseScene(scene_);
+    if (device_) rtcReleaseDevice(device_);
+}
+
+bool RayCaster::occluded(const Vec3& from, const Vec3& to) const {
+    if (numTriangles_ == 0) return false;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay ray{};
+    Vec3 d = to - from;
+    ray.org_x = float(from.x); ray.org_y = float(from.y); ray.org_z = float(from.z);
+    ray.dir_x = float(d.x); ray.dir_y = float(d.y); ray.dir_z = float(d.z);
+    ray.tnear = 0.0f;
+    ray.tfar = 1.0f;
+    ray.mask = 0xFFFFFFFF;
+    rtcOccluded1(scene_, &ctx, &ray);
+    return ray.tfar < 0.0f;
+}
+
+double RayCaster::unoccludedFraction(const Vec3* from, const Vec3* to, int n) const {
+    if (n <= 0) return 1.0;
+    if (numTriangles_ == 0) return 1.0;
+    int visible = 0;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (int base = 0; base < n; base += 16) {
+        alignas(64) RTCRay16 rays;
+        alignas(64) int valid[16];
+        for (int i = 0; i < 16; ++i) {
+            int k = base + i;
+            valid[i] = k < n ? -1 : 0;
+            Vec3 o = k < n ? from[k] : Vec3{}, d = k < n ? to[k] - from[k] : Vec3{0, 0, 1};
+            rays.org_x[i] = float(o.x); rays.org_y[i] = float(o.y); rays.org_z[i] = float(o.z);
+            rays.dir_x[i] = float(d.x); rays.dir_y[i] = float(d.y); rays.dir_z[i] = float(d.z);
+            rays.tnear[i] = 0.0f;
+            rays.tfar[i] = 1.0f;
+            rays.time[i] = 0.0f;
+            rays.mask[i] = 0xFFFFFFFF;
+            rays.id[i] = 0;
+            rays.flags[i] = 0;
+        }
+        rtcOccluded16(valid, scene_, &ctx, &rays);
+        for (int i = 0; i < 16 && base + i < n; ++i) visible += rays.tfar[i] >= 0.0f;
+    }
+    return double(visible) / n;
+}
+
+}  // namespace penumbra
