@@ -1,0 +1,295 @@
+"""Scene export: Blender's evaluated geometry, materials and area lights as flat numpy arrays for the solver.
+
+Everything is world space and in Cycles' units (blender-facts §1). Per-element work is done with
+`foreach_get` and numpy; Python loops run over objects, material slots and lights only.
+"""
+import math
+
+import numpy as np
+
+from .materials import parse_material
+
+EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
+LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
+
+DISK_SECTORS = 32
+# A quad is sent as one polygon only if it is flat and convex: the solver subdivides it as a planar
+# quadrilateral. Both diagonals' triangle pairs must agree in orientation to within this cosine.
+QUAD_FLAT_COS = 0.99999
+
+
+class ExportError(ValueError):
+    pass
+
+
+class Exported:
+    """The solver's input arrays and what the export decided along the way."""
+
+    def __init__(self):
+        self.vertices = np.zeros((0, 3), np.float32)
+        self.polygons = np.zeros((0, 4), np.int32)
+        self.reflectance = np.zeros((0, 3), np.float32)
+        self.emission = np.zeros((0, 3), np.float32)
+        self.flags = np.zeros(0, np.uint8)
+        self.object_index = np.zeros(0, np.int32)
+        self.object_names = []
+        self.bake_objects = []        # names of original mesh objects that get a lightmap / attribute
+        self.skipped = []             # {"name", "reason"}
+        self.warnings = []
+        self.notes = []
+        self.counts = {}
+
+    def skip(self, name, reason):
+        self.skipped.append({"name": name, "reason": reason})
+
+
+def _get(coll, attr, n, dtype, width=1):
+    a = np.empty(n * width, dtype)
+    if n:
+        coll.foreach_get(attr, a)
+    return a.reshape(n, width) if width > 1 else a
+
+
+def _transform(co, m):
+    return co @ m[:3, :3].T + m[:3, 3]
+
+
+def mesh_polygons(me):
+    """Polygons of a mesh as (P, 4) vertex indices (-1 pads triangles) plus each row's source polygon.
+
+    Flat convex quads and triangles are kept; n-gons and bent or concave quads become their loop triangles,
+    which Blender already winds like the polygon they come from.
+    """
+    n_poly = len(me.polygons)
+    loop_total = _get(me.polygons, "loop_total", n_poly, np.int32)
+    loop_start = _get(me.polygons, "loop_start", n_poly, np.int32)
+    loop_vert = _get(me.loops, "vertex_index", len(me.loops), np.int32)
+    co = _get(me.vertices, "co", len(me.vertices), np.float32, 3).astype(np.float64)
+
+    keep = loop_total <= 4
+    rows = np.full((n_poly, 4), -1, np.int32)
+    for k in range(4):
+        m = keep & (loop_total > k)
+        rows[m, k] = loop_vert[loop_start[m] + k]
+
+    quad = np.nonzero(keep & (loop_total == 4))[0]
+    if len(quad):
+        p = co[rows[quad]]                                   # (Q, 4, 3)
+        def tri_n(a, b, c):
+            n = np.cross(p[:, b] - p[:, a], p[:, c] - p[:, a])
+            return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        ok = (np.einsum("ij,ij->i", tri_n(0, 1, 2), tri_n(0, 2, 3)) > QUAD_FLAT_COS) & \
+             (np.einsum("ij,ij->i", tri_n(1, 2, 3), tri_n(1, 3, 0)) > QUAD_FLAT_COS)
+        keep[quad[~ok]] = False
+
+    src = np.nonzero(keep)[0].astype(np.int32)
+    out = rows[keep]
+    if not keep.all():
+        me.calc_loop_triangles()
+        n_tri = len(me.loop_triangles)
+        lt_vert = _get(me.loop_triangles, "vertices", n_tri, np.int32, 3)
+        lt_poly = _get(me.loop_triangles, "polygon_index", n_tri, np.int32)
+        sel = ~keep[lt_poly]
+        tris = np.full((int(sel.sum()), 4), -1, np.int32)
+        tris[:, :3] = lt_vert[sel]
+        out = np.concatenate([out, tris])
+        src = np.concatenate([src, lt_poly[sel]])
+    return co, out, src
+
+
+def _material_table(ob_eval, ob_name, cache, result):
+    slots = [s.material for s in ob_eval.material_slots] or [None]
+    albedo = np.empty((len(slots), 3), np.float64)
+    radiance = np.empty((len(slots), 3), np.float64)
+    for i, mat in enumerate(slots):
+        key = mat.name_full if mat is not None else None
+        if key not in cache:
+            cache[key] = parse_material(mat)
+        info = cache[key]
+        albedo[i] = info.albedo
+        radiance[i] = info.radiance
+    return slots, albedo, radiance
+
+
+def _report_material(slots, used, ob_name, cache, result, reported):
+    for i in np.nonzero(used)[0]:
+        mat = slots[i]
+        key = mat.name_full if mat is not None else None
+        if (ob_name, key) in reported:
+            continue
+        reported.add((ob_name, key))
+        info = cache[key]
+        label = f"object '{ob_name}', material '{mat.name if mat else '(none)'}'"
+        result.warnings += [f"{label}: {w}" for w in info.warnings]
+        result.notes += [f"{label}: {n}" for n in info.notes]
+
+
+def area_light_polygon(light, matrix):
+    """World-space polygons (list of (k, 3) arrays, counter-clockwise about the emitting direction, local -Z)
+    and the true world-space area of the light's shape."""
+    m = np.asarray(matrix, np.float64)
+    sx = float(light.size)
+    sy = float(light.size_y) if light.shape in ("RECTANGLE", "ELLIPSE") else sx
+    if light.shape in ("SQUARE", "RECTANGLE"):
+        # Clockwise seen from +Z, so the right-hand normal points along -Z.
+        local = np.array([[-sx / 2, -sy / 2, 0], [-sx / 2, sy / 2, 0], [sx / 2, sy / 2, 0], [sx / 2, -sy / 2, 0]])
+        polys = [_transform(local, m)]
+        area = _polygon_area(polys[0])
+        return polys, area
+    if light.shape in ("DISK", "ELLIPSE"):
+        n = DISK_SECTORS
+        # Inscribed n-gon scaled so its area equals the ellipse's, pi*a*b (size is the diameter).
+        k = math.sqrt(math.pi / (0.5 * n * math.sin(2 * math.pi / n)))
+        ang = -2 * math.pi * np.arange(n) / n                     # decreasing angle: clockwise from +Z
+        rim = np.stack([k * sx / 2 * np.cos(ang), k * sy / 2 * np.sin(ang), np.zeros(n)], axis=1)
+        centre = np.zeros((1, 3))
+        world_rim = _transform(rim, m)
+        world_c = _transform(centre, m)[0]
+        polys = [np.stack([world_c, world_rim[i], world_rim[(i + 1) % n]]) for i in range(n)]
+        area = sum(_polygon_area(p) for p in polys)
+        return polys, area
+    raise ExportError(f"area light shape '{light.shape}' is not supported")
+
+
+def _polygon_area(p):
+    s = np.zeros(3)
+    for i in range(len(p)):
+        s += np.cross(p[i], p[(i + 1) % len(p)])
+    return 0.5 * float(np.linalg.norm(s))
+
+
+def _world_report(scene, result):
+    w = scene.world
+    if w is None:
+        return
+    strength = 0.0
+    if w.use_nodes and w.node_tree is not None:
+        out = w.node_tree.get_output_node("CYCLES")
+        if out is not None and out.inputs["Surface"].is_linked:
+            node = out.inputs["Surface"].links[0].from_node
+            if node.type == "BACKGROUND":
+                c = node.inputs["Color"]
+                s = node.inputs["Strength"]
+                strength = (1.0 if c.is_linked else max(c.default_value[:3])) * \
+                           (1.0 if s.is_linked else s.default_value)
+            else:
+                strength = 1.0
+    else:
+        strength = max(w.color)
+    if strength > 0:
+        result.skip(w.name, "world lighting is ignored (only meshes and area lights emit)")
+
+
+def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=None):
+    res = Exported()
+    verts, polys, refl, emit, flags, oidx = [], [], [], [], [], []
+    base = 0
+    cache = {}
+    reported = set()
+    mesh_owner = {}                  # mesh name -> first baked object that uses it
+
+    def add_part(name, co_w, rows, albedo, exitance, fl):
+        nonlocal base
+        k = len(res.object_names)
+        res.object_names.append(name)
+        verts.append(co_w.astype(np.float32))
+        polys.append(np.where(rows >= 0, rows + base, -1).astype(np.int32))
+        refl.append(albedo.astype(np.float32))
+        emit.append(exitance.astype(np.float32))
+        flags.append(fl.astype(np.uint8))
+        oidx.append(np.full(len(rows), k, np.int32))
+        base += len(co_w)
+
+    n_lights = 0
+    for inst in depsgraph.object_instances:
+        ob_eval = inst.object
+        original = ob_eval.original
+        is_inst = inst.is_instance
+        owner = inst.parent.original if is_inst and inst.parent is not None else original
+        if not is_inst and not inst.show_self:
+            continue
+        if not owner.visible_get(view_layer=view_layer):
+            continue
+        if selection_only and not owner.select_get(view_layer=view_layer):
+            continue
+        name = original.name if not is_inst else f"{original.name} (instance via {owner.name})"
+        matrix = np.array(inst.matrix_world, np.float64)
+
+        if ob_eval.type == "LIGHT":
+            light = ob_eval.data
+            if light.type != "AREA":
+                res.skip(name, f"{light.type} light is not supported (only AREA lights are)")
+                continue
+            if abs(light.spread - math.pi) > 1e-4:
+                res.warnings.append(f"area light '{name}': spread {math.degrees(light.spread):.0f} deg is "
+                                    f"treated as 180 deg (Lambertian)")
+            if light.energy <= 0:
+                res.skip(name, "area light with zero power")
+                continue
+            lpolys, area = area_light_polygon(light, matrix)
+            if area <= 0:
+                res.skip(name, "area light with zero area")
+                continue
+            exitance = math.pi * light.energy * np.array(light.color, np.float64) / (4.0 * area)
+            co_w = np.concatenate(lpolys)
+            rows = np.full((len(lpolys), 4), -1, np.int32)
+            start = 0
+            for i, p in enumerate(lpolys):
+                rows[i, :len(p)] = np.arange(start, start + len(p))
+                start += len(p)
+            n = len(lpolys)
+            add_part(name, co_w, rows, np.zeros((n, 3)), np.tile(exitance, (n, 1)),
+                     np.full(n, LIGHT_ONLY, np.uint8))
+            n_lights += 1
+            continue
+
+        if ob_eval.type != "MESH":
+            if ob_eval.type in ("CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME", "GPENCIL"):
+                res.skip(name, f"{ob_eval.type} object is not exported (convert it to a mesh)")
+            continue
+
+        me = ob_eval.to_mesh()
+        try:
+            if len(me.polygons) == 0:
+                res.skip(name, "mesh has no faces")
+                continue
+            co, rows, src = mesh_polygons(me)
+            mat_index = _get(me.polygons, "material_index", len(me.polygons), np.int32)
+            slots, albedo_t, rad_t = _material_table(ob_eval, name, cache, res)
+            si = np.clip(mat_index[src], 0, len(slots) - 1)
+            used = np.bincount(si, minlength=len(slots)) > 0
+            _report_material(slots, used, name, cache, res, reported)
+            co_w = _transform(co, matrix)
+            if np.linalg.det(matrix[:3, :3]) < 0:
+                # A mirroring transform reverses the winding; Blender keeps the normal, so reverse the order.
+                tri = rows[:, 3] < 0
+                rows = np.where(tri[:, None], rows[:, [2, 1, 0, 3]], rows[:, [3, 2, 1, 0]])
+            radiance = rad_t[si]
+            fl = np.where(radiance.max(axis=1) > 0, EMIT_BACK, 0).astype(np.uint8)
+            add_part(name, co_w, rows, albedo_t[si], math.pi * radiance, fl)
+        finally:
+            ob_eval.to_mesh_clear()
+
+        if is_inst:
+            res.skip(name, "not baked: instance (its mesh data is shared; it takes part in the solve)")
+        elif original.data.library is not None or getattr(original.data, "override_library", None):
+            res.skip(name, "not baked: the mesh is linked from a library (it takes part in the solve)")
+        elif original.data.name_full in mesh_owner:
+            res.skip(name, f"not baked: shares its mesh with '{mesh_owner[original.data.name_full]}' "
+                           f"(it takes part in the solve)")
+        else:
+            mesh_owner[original.data.name_full] = original.name
+            res.bake_objects.append(original.name)
+
+    _world_report(scene, res)
+    if polys:
+        res.vertices = np.ascontiguousarray(np.concatenate(verts), np.float32)
+        res.polygons = np.ascontiguousarray(np.concatenate(polys), np.int32)
+        res.reflectance = np.ascontiguousarray(np.concatenate(refl), np.float32)
+        res.emission = np.ascontiguousarray(np.concatenate(emit), np.float32)
+        res.flags = np.ascontiguousarray(np.concatenate(flags), np.uint8)
+        res.object_index = np.ascontiguousarray(np.concatenate(oidx), np.int32)
+    res.counts = {"objects": len(res.object_names), "area_lights": n_lights,
+                  "polygons": int(len(res.polygons)), "vertices": int(len(res.vertices)),
+                  "emitting_polygons": int((res.emission.max(axis=1) > 0).sum()) if len(res.emission) else 0}
+    return res

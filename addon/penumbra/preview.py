@@ -1,0 +1,129 @@
+"""Showing a bake in renders: each material slot of a baked object is switched to a material that emits the
+lightmap (plus the slot's own emission), and switched back exactly.
+
+The preview materials go into object-linked slots, so the mesh's own material list is never touched; what the
+slots held before (link type and object-level material) is stored on the object so that switching off works
+after a save and reload too.
+"""
+import bpy
+
+from .materials import parse_material
+from .writeback import ATTRIBUTE, baked_state
+
+STATE = "penumbra_preview"
+
+
+def _object_level_material(slot):
+    """The material in the object's own slot, whichever link the slot shows."""
+    if slot.link == "OBJECT":
+        return slot.material
+    slot.link = "OBJECT"
+    try:
+        return slot.material
+    finally:
+        slot.link = "DATA"
+
+
+def _make_material(name, state, original):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    # The preview only shows stored light; letting Cycles sample it as a light would only add noise.
+    mat.cycles.sample_as_light = False
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    out.location = (600, 0)
+    emit = nt.nodes.new("ShaderNodeEmission")
+    emit.location = (200, 0)
+    emit.inputs["Strength"].default_value = 1.0
+    img = bpy.data.images.get(state.get("image", "")) if state.get("image") else None
+    if img is not None:
+        uv = nt.nodes.new("ShaderNodeUVMap")
+        uv.location = (-400, 0)
+        # Without a UV Map node an Image Texture reads the render-active UV map, not the lightmap's.
+        uv.uv_map = state.get("uv_map", "")
+        tex = nt.nodes.new("ShaderNodeTexImage")
+        tex.location = (-150, 0)
+        tex.image = img
+        tex.interpolation = "Linear"
+        tex.extension = "EXTEND"
+        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        nt.links.new(tex.outputs["Color"], emit.inputs["Color"])
+    else:
+        attr = nt.nodes.new("ShaderNodeVertexColor")
+        attr.location = (-150, 0)
+        attr.layer_name = state.get("attribute", ATTRIBUTE)
+        nt.links.new(attr.outputs["Color"], emit.inputs["Color"])
+    shader = emit.outputs["Emission"]
+    radiance = parse_material(original).radiance
+    peak = max(radiance)
+    if peak > 0:
+        own = nt.nodes.new("ShaderNodeEmission")
+        own.location = (200, -200)
+        own.inputs["Color"].default_value = (*(c / peak for c in radiance), 1.0)
+        own.inputs["Strength"].default_value = peak
+        add = nt.nodes.new("ShaderNodeAddShader")
+        add.location = (400, 0)
+        nt.links.new(shader, add.inputs[0])
+        nt.links.new(own.outputs["Emission"], add.inputs[1])
+        shader = add.outputs["Shader"]
+    nt.links.new(shader, out.inputs["Surface"])
+    return mat
+
+
+def preview_on(ob):
+    state = baked_state(ob)
+    if not state or ob.get(STATE) is not None:
+        return False
+    added = len(ob.material_slots) == 0
+    if added:
+        ob.data.materials.append(None)
+    slots = []
+    for slot in ob.material_slots:
+        om = _object_level_material(slot)
+        slots.append({"link": slot.link, "object_material": om.name if om is not None else ""})
+    made = []
+    try:
+        for i, slot in enumerate(ob.material_slots):
+            mat = _make_material(f"Penumbra Preview {ob.name} {i}", state, slot.material)
+            made.append(mat.name)
+            slot.link = "OBJECT"
+            slot.material = mat
+    except BaseException:
+        _restore(ob, slots, made, added)
+        raise
+    ob[STATE] = {"slots": slots, "materials": made, "added_slot": added}
+    return True
+
+
+def _restore(ob, slots, made, added):
+    for slot, rec in zip(ob.material_slots, slots):
+        slot.link = "OBJECT"
+        slot.material = bpy.data.materials.get(rec["object_material"]) if rec["object_material"] else None
+        slot.link = rec["link"]
+    for name in made:
+        m = bpy.data.materials.get(name)
+        if m is not None:
+            bpy.data.materials.remove(m)
+    if added and len(ob.data.materials):
+        ob.data.materials.pop(index=len(ob.data.materials) - 1)
+
+
+def preview_off(ob):
+    rec = ob.get(STATE)
+    if rec is None:
+        return False
+    rec = rec.to_dict()
+    _restore(ob, rec["slots"], rec["materials"], rec["added_slot"])
+    del ob[STATE]
+    return True
+
+
+def set_preview(scene, on):
+    changed = []
+    for ob in scene.objects:
+        if ob.type != "MESH":
+            continue
+        if (preview_on if on else preview_off)(ob):
+            changed.append(ob.name)
+    return changed

@@ -1,0 +1,52 @@
+"""The Cornell box bake against the stored Cycles reference (examples/make_cycles_reference.py)."""
+import json
+import os
+
+import bpy
+import numpy as np
+
+import cornell_box
+from conftest import HERE
+
+REFERENCE = os.path.join(HERE, "data", "cornell_reference.json")
+# Issue 2 asks for 5 % now; the product goal is 2 %.
+MAX_RELATIVE_RMS = 0.05
+# Finer than the default refinement threshold (0.002, which lands near 4.6 %): about 2.7 % in 0.3 s.
+SOLVER = {"epsilon": 0.0005}
+
+
+def lightmap_face_averages(report, name):
+    ob = bpy.data.objects[name]
+    img = bpy.data.images[report["outputs"][name]["image"]]
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    mean, _, count = cornell_box.face_texel_averages(ob.data, ob["penumbra"]["uv_map"], px.reshape(h, w, 4))
+    assert (count > 0).all(), f"{name}: faces without texels"
+    return mean
+
+
+def test_cornell_box_matches_cycles(empty_scene, penumbra):
+    with open(REFERENCE) as f:
+        ref = json.load(f)
+    cornell_box.build()
+    report = penumbra.bake(empty_scene, resolution=ref["settings"]["resolution"], targets={"LIGHTMAP"}, **SOLVER)
+    diff2 = ref2 = noise2 = 0.0
+    lines = []
+    for name in cornell_box.RECEIVERS:
+        r = np.array(ref["objects"][name]["radiance"])
+        se = np.array(ref["objects"][name]["stderr"])
+        p = lightmap_face_averages(report, name)
+        assert p.shape == r.shape, name
+        diff2 += ((p - r) ** 2).sum()
+        ref2 += (r ** 2).sum()
+        noise2 += (se ** 2).sum()
+        lines.append(f"{name:10s} mean ratio {p.sum() / r.sum():.4f}  rel RMS "
+                     f"{np.sqrt(((p - r) ** 2).sum() / (r ** 2).sum()):.4f}")
+    rel = float(np.sqrt(diff2 / ref2))
+    noise = float(np.sqrt(noise2 / ref2))
+    print("\n".join(lines))
+    print(f"Cornell box vs Cycles: relative RMS {rel:.4f} over per-face averages (reference noise {noise:.4f}); "
+          f"solve {report['times']['solve']:.2f} s, {report['elements']} elements, {report['links']} links")
+    assert noise < 0.01
+    assert rel < MAX_RELATIVE_RMS
