@@ -136,3 +136,70 @@ def image_pixels(img):
     px = np.empty(w * h * 4, np.float32)
     img.pixels.foreach_get(px)
     return px.reshape(h, w, 4)
+
+
+def blend_state():
+    """Everything a bake or a preview may touch, in comparable form (bit-exact for arrays)."""
+    state = {"images": {}, "materials": {}, "meshes": {}, "objects": {}}
+    for img in bpy.data.images:
+        w, h = img.size
+        px = np.empty(w * h * img.channels, np.float32)
+        if w * h:
+            img.pixels.foreach_get(px)
+        state["images"][img.name] = (tuple(img.size), px.tobytes(), img.users, img.use_fake_user)
+    for m in bpy.data.materials:
+        state["materials"][m.name] = m.users
+    for me in bpy.data.meshes:
+        uvs = {}
+        for layer in me.uv_layers:
+            a = np.empty(len(me.loops) * 2, np.float32)
+            layer.data.foreach_get("uv", a)
+            uvs[layer.name] = (a.tobytes(), layer.active, layer.active_render)
+        attrs = {a.name: (a.domain, a.data_type) for a in me.attributes}
+        colors = {}
+        for ca in me.color_attributes:
+            a = np.empty(len(ca.data) * 4, np.float32)
+            ca.data.foreach_get("color", a)
+            colors[ca.name] = a.tobytes()
+        flags = {}
+        for coll in ("vertices", "edges", "polygons"):
+            for attr in ("select", "hide"):
+                c = getattr(me, coll)
+                a = np.empty(len(c), bool)
+                c.foreach_get(attr, a)
+                flags[(coll, attr)] = a.tobytes()
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        state["meshes"][me.name] = {
+            "uvs": uvs, "attrs": attrs, "colors": colors, "flags": flags, "co": co.tobytes(),
+            "materials": [m.name if m else None for m in me.materials],
+            "active_color": me.color_attributes.active_color_index,
+            "render_color": me.color_attributes.render_color_index,
+        }
+    vl = bpy.context.view_layer
+    for ob in bpy.data.objects:
+        slots = []
+        for s in ob.material_slots:
+            link = s.link
+            s.link = "OBJECT"
+            om = s.material.name if s.material else None
+            s.link = "DATA"
+            dm = s.material.name if s.material else None
+            s.link = link
+            slots.append((link, om, dm))
+        props = {k: (ob[k].to_dict() if hasattr(ob[k], "to_dict") else ob[k]) for k in ob.keys()}
+        state["objects"][ob.name] = {"slots": slots, "props": props, "selected": ob.select_get(),
+                                     "mode": ob.mode}
+    state["active"] = vl.objects.active.name if vl.objects.active else None
+    return state
+
+
+def assert_same_state(before, after):
+    assert before.keys() == after.keys()
+    for key in before:
+        if before[key] != after[key]:
+            if isinstance(before[key], dict):
+                diff = {k for k in set(before[key]) | set(after[key]) if before[key].get(k) != after[key].get(k)}
+                detail = {k: (before[key].get(k), after[key].get(k)) for k in sorted(diff)}
+                raise AssertionError(f"{key} changed: {sorted(diff)}: {str(detail)[:2000]}")
+            raise AssertionError(f"{key} changed: {before[key]!r} -> {after[key]!r}")

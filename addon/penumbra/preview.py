@@ -76,6 +76,7 @@ def preview_on(ob):
     if not state or ob.get(STATE) is not None:
         return False
     added = len(ob.material_slots) == 0
+    active_index = ob.active_material_index
     if added:
         ob.data.materials.append(None)
     slots = []
@@ -92,7 +93,7 @@ def preview_on(ob):
     except BaseException:
         _restore(ob, slots, made, added)
         raise
-    ob[STATE] = {"slots": slots, "materials": made, "added_slot": added}
+    ob[STATE] = {"slots": slots, "materials": made, "added_slot": added, "active_index": active_index}
     return True
 
 
@@ -105,8 +106,11 @@ def _restore(ob, slots, made, added):
         m = bpy.data.materials.get(name)
         if m is not None:
             bpy.data.materials.remove(m)
-    if added and len(ob.data.materials):
-        ob.data.materials.pop(index=len(ob.data.materials) - 1)
+    if added and len(ob.material_slots):
+        # Mesh.materials.pop() leaves the object's own slot count behind; the operator removes both.
+        ob.active_material_index = len(ob.material_slots) - 1
+        with bpy.context.temp_override(object=ob):
+            bpy.ops.object.material_slot_remove()
 
 
 def preview_off(ob):
@@ -115,6 +119,7 @@ def preview_off(ob):
         return False
     rec = rec.to_dict()
     _restore(ob, rec["slots"], rec["materials"], rec["added_slot"])
+    ob.active_material_index = rec.get("active_index", 0)
     del ob[STATE]
     return True
 
