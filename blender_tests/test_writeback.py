@@ -175,3 +175,28 @@ def test_color_attribute_matches_the_lightmap_scale(empty_scene, penumbra):
     assert np.all(rgba[:, 3] == 1.0)
     assert abs(rgba[:, :3].mean() / covered.mean() - 1) < 0.1
     json.dumps(report)
+
+
+def test_exr_and_packed_image_are_exact(empty_scene, penumbra, tmp_path):
+    import OpenImageIO as oiio
+    cornell_box.build()
+    report = penumbra.bake(empty_scene, output_dir=str(tmp_path), **FAST)
+    name = "Penumbra_LeftWall"
+    px = helpers.image_pixels(bpy.data.images[name]).copy()
+    assert px[..., :3].max() > 0 and np.all(px[..., 3] == 1)
+    exr = report["outputs"]["LeftWall"]["exr"]
+    inp = oiio.ImageInput.open(exr)
+    try:
+        spec = inp.spec()
+        assert spec.format == oiio.FLOAT
+        data = inp.read_image(oiio.FLOAT)
+    finally:
+        inp.close()
+    # EXR rows run top to bottom; Blender's pixels bottom to top.
+    assert np.array_equal(np.asarray(data)[::-1, :, :4], px)
+    path = str(tmp_path / "packed.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    img = bpy.data.images[name]
+    assert img.packed_file is not None
+    assert np.array_equal(helpers.image_pixels(img), px)
