@@ -150,3 +150,25 @@ def test_selection_only_and_hidden_objects(empty_scene):
         ob.select_set(ob.name in ("Floor", "Lamp"))
     ex = _export(empty_scene, selection_only=True)
     assert sorted(ex.object_names) == ["Floor", "Lamp"]
+
+
+def test_modifiers_and_mirroring(empty_scene, penumbra):
+    cornell_box.build()
+    block = bpy.data.objects["ShortBlock"]
+    block.modifiers.new("Sub", "SUBSURF").levels = 1
+    wall = bpy.data.objects["LeftWall"]
+    # Mirror the red wall in place (x -> -2 - x keeps it at x = -1): its faces then point out of the room,
+    # which is what Blender shows (normals transform with the inverse transpose).
+    wall.scale = (-1, 1, 1)
+    wall.location = (-2, 0, 0)
+    bpy.context.view_layer.update()
+    ex = _export(empty_scene)
+    k = ex.object_names.index("ShortBlock")
+    assert (ex.object_index == k).sum() == 4 * len(block.data.polygons)
+    kw = ex.object_names.index("LeftWall")
+    p = ex.vertices[ex.polygons[ex.object_index == kw][:, :3]].astype(np.float64)
+    n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    assert (n[:, 0] < 0).all()
+    report = penumbra.bake(empty_scene, resolution=16, epsilon=0.01)
+    assert any("ShortBlock" in w and "topology" in w for w in report["warnings"])
+    assert "LeftWall" in report["objects_baked"]

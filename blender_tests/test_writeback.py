@@ -200,3 +200,17 @@ def test_exr_and_packed_image_are_exact(empty_scene, penumbra, tmp_path):
     img = bpy.data.images[name]
     assert img.packed_file is not None
     assert np.array_equal(helpers.image_pixels(img), px)
+
+
+def test_cancel_during_write_back_rolls_back(empty_scene, penumbra):
+    cornell_box.build()
+    before = helpers.blend_state()
+    seen = []
+
+    def progress(stage, frac):
+        seen.append(stage)
+        return not (stage == "write-back" and frac > 0.5)
+    with pytest.raises(penumbra.Cancelled):
+        penumbra.bake(empty_scene, progress=progress, **FAST)
+    assert "write-back" in seen
+    helpers.assert_same_state(before, helpers.blend_state())

@@ -162,14 +162,19 @@ def bake(scene=None, progress=None, **settings):
             if key in native_report:
                 report[key] = native_report[key]
         report["warnings"] += [f"solver: {w}" for w in native_report.get("warnings", [])]
+        if native_report.get("converged") is False:
+            report["warnings"].append(f"solver: not converged after {native_report.get('iterations')} "
+                                      f"iterations (residual {_fmt(native_report.get('residual'))}); raise "
+                                      f"max_iterations or tolerance")
 
         step("write-back", 0.0)
         t = time.perf_counter()
         ws = dict(s)
         if ws["output_dir"]:
             ws["output_dir"] = bpy.path.abspath(ws["output_dir"])
+        # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
         outputs = writeback.write_all(scene, vl, ex.bake_objects, solution, _native, ws, report,
-                                      progress=progress)
+                                      progress=step if progress is not None else None)
         report["times"]["write_back"] = time.perf_counter() - t
         report["objects_baked"] = list(ex.bake_objects)
         report["outputs"] = outputs
