@@ -126,8 +126,25 @@ void SpanRasterizer::rasterize(const PolygonSet& polys, const PixelGrid& g, floa
                 continue;
             }
             ++q;
-            int s = polys.start[k];
-            crossings(&pv[s], polys.start[k + 1] - s, y, xs);
+            int s = polys.start[k], cnt = polys.start[k + 1] - s;
+            if (cnt == 3) {
+                // Triangles (every blocker) cross a line exactly twice: no list, no sort.
+                const Vec2* v = &pv[s];
+                double x[2];
+                int m = 0;
+                for (int e = 0; e < 3; ++e) {
+                    const Vec2& a = v[e];
+                    const Vec2& b = v[e == 2 ? 0 : e + 1];
+                    if ((a.y <= y) != (b.y <= y)) x[m++ & 1] = a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y);
+                }
+                if (m == 2) {
+                    double a = std::fmax(std::fmin(x[0], x[1]), 0.0);
+                    double b = std::fmin(std::fmax(x[0], x[1]), static_cast<double>(W));
+                    if (b > a) spans.push_back({a, b});
+                }
+                continue;
+            }
+            crossings(&pv[s], cnt, y, xs);
             for (size_t c = 0; c + 1 < xs.size(); c += 2) {
                 double a = std::fmax(xs[c], 0.0), b = std::fmin(xs[c + 1], static_cast<double>(W));
                 if (b > a) spans.push_back({a, b});

@@ -148,26 +148,26 @@ void estimateSlice(const ConvolutionPlan& P, double maxRadius, SubBlocker& sb) {
     sb.visibilityError = sb.error > 0 ? std::fmin(1.0, 1.25 * sb.error / std::fmax(width, 1e-300)) : 0.0;
 }
 
+// Per-triangle quantities the slab split needs, computed once for all N tried.
+struct TriangleDepths {
+    double invCentroid;  // 1 / depth of the centroid
+    DepthRange depth;
+    double radius;       // largest distance of a projected vertex from the axis, virtual plane
+};
+
 // Splits the blocker into N slabs of equal inverse depth (brief §4.3, slab variant); each triangle
 // goes to the slab of its centroid and each slab's depth range is that of its own triangles.
-std::vector<SubBlocker> slabs(const ConvolutionPlan& P, const std::vector<BlockerTriangle>& tris,
-                              const std::vector<int>& kept, int N) {
-    const ConvolutionFrame& f = P.frame;
+std::vector<SubBlocker> slabs(const ConvolutionPlan& P, const std::vector<int>& kept,
+                              const std::vector<TriangleDepths>& td, int N) {
     const double bLo = 1.0 / P.blockerDepth.hi, bHi = 1.0 / P.blockerDepth.lo;
     std::vector<SubBlocker> out(N);
     std::vector<double> radius(N, 0.0);
-    for (int idx : kept) {
-        const BlockerTriangle& t = tris[idx];
-        double zc = f.depth((t[0] + t[1] + t[2]) / 3.0);
-        int k = bHi > bLo ? static_cast<int>(std::floor((1.0 / zc - bLo) / (bHi - bLo) * N)) : 0;
+    for (size_t i = 0; i < kept.size(); ++i) {
+        int k = bHi > bLo ? static_cast<int>(std::floor((td[i].invCentroid - bLo) / (bHi - bLo) * N)) : 0;
         k = std::clamp(k, 0, N - 1);
-        out[k].triangles.push_back(idx);
-        for (const Vec3& v : t) {
-            double z = f.depth(v);
-            out[k].depth.extend(z);
-            double k2 = P.window.z_r / z;
-            radius[k] = std::fmax(radius[k], std::hypot(f.coordU(v) * k2, f.coordV(v) * k2));
-        }
+        out[k].triangles.push_back(kept[i]);
+        out[k].depth.extend(td[i].depth);
+        radius[k] = std::fmax(radius[k], td[i].radius);
     }
     std::vector<SubBlocker> nonEmpty;
     for (int k = 0; k < N; ++k)
@@ -268,10 +268,21 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
     // Smallest N reaching e_max. If none does (the receiver's own depth spread may dominate),
     // the smallest N within 10% of the best error reached: every extra slab costs FFTs and adds
     // seams where the product of slice maps is approximate.
+    std::vector<TriangleDepths> td(kept.size());
+    for (size_t i = 0; i < kept.size(); ++i) {
+        const BlockerTriangle& t = blockers[kept[i]];
+        td[i].invCentroid = 1.0 / f.depth((t[0] + t[1] + t[2]) / 3.0);
+        td[i].radius = 0;
+        for (const Vec3& v : t) {
+            double z = f.depth(v), k2 = P.window.z_r / z;
+            td[i].depth.extend(z);
+            td[i].radius = std::fmax(td[i].radius, std::hypot(f.coordU(v) * k2, f.coordV(v) * k2));
+        }
+    }
     std::vector<std::vector<SubBlocker>> tries;
     std::vector<double> errs;
     for (int N = 1; N <= s.n_max; ++N) {
-        tries.push_back(slabs(P, blockers, kept, N));
+        tries.push_back(slabs(P, kept, td, N));
         double e = 0;
         for (const SubBlocker& b : tries.back()) e = std::fmax(e, b.error);
         errs.push_back(e);
@@ -395,8 +406,28 @@ SoftShadowTexture computeSoftShadow(const ConvolutionPlan& P, const SourceDesc& 
 
     std::unique_ptr<CoverageRasterizer> raster = makeRasterizer(settings.rasterizer, settings.supersample);
     FftConvolver fft(F);
-    RealImage kernel = fft.makeImage(), blocker = fft.makeImage(), occ = fft.makeImage();
-    Spectrum kernelSpec = fft.makeSpectrum(), scratch = fft.makeSpectrum();
+    // Work images are kept per thread for the last size: fresh multi-megabyte buffers cost a page
+    // fault per 4 KiB on first touch, as much as a third of the transforms at n = 1024.
+    struct Work {
+        int size = 0;
+        RealImage kernel, blocker, occ;
+        Spectrum kernelSpec, scratch;
+    };
+    thread_local Work work;
+    if (work.size != F) {
+        work = Work{};
+        work.kernel = fft.makeImage();
+        work.blocker = fft.makeImage();
+        work.occ = fft.makeImage();
+        work.kernelSpec = fft.makeSpectrum();
+        work.scratch = fft.makeSpectrum();
+        work.size = F;
+    }
+    RealImage& kernel = work.kernel;
+    RealImage& blocker = work.blocker;
+    RealImage& occ = work.occ;
+    Spectrum& kernelSpec = work.kernelSpec;
+    Spectrum& scratch = work.scratch;
     double kernelAlpha = -1, kernelSum = 0;
     PixelGrid grid{P.window.u_lo - P.marginLoU * P.p, P.window.v_lo - P.marginLoV * P.p, P.p, F, F};
     PolygonSet polys;
