@@ -10,9 +10,10 @@ from conftest import HERE
 
 REFERENCE = os.path.join(HERE, "data", "cornell_reference.json")
 # Issue 2 asks for 5 % now; the product goal is 2 %.
-MAX_RELATIVE_RMS = 0.05
-# Finer than the default refinement threshold (0.002, which lands near 4.6 %): about 2.7 % in 0.3 s.
-SOLVER = {"epsilon": 0.0005}
+# The issue accepts 5 % for now; the measured 1.8 % is guarded more tightly so regressions show.
+MAX_RELATIVE_RMS = 0.025
+# The solver's defaults (epsilon 0.0002): 1.8 % in about 0.4 s here.
+SOLVER = {}
 
 
 def lightmap_face_averages(report, name):

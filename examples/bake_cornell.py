@@ -25,8 +25,8 @@ def parse_args():
     ap = argparse.ArgumentParser(prog="blender -b --factory-startup --python examples/bake_cornell.py --")
     ap.add_argument("--out", default=os.path.join(REPO, "out", "cornell"))
     ap.add_argument("--resolution", type=int, default=256)
-    ap.add_argument("--epsilon", type=float, default=0.0005,
-                    help="refinement threshold (the solver's default 0.002 is coarser and faster)")
+    ap.add_argument("--epsilon", type=float, default=None,
+                    help="refinement threshold (default: the solver's, 0.0002)")
     ap.add_argument("--render-size", type=int, default=400)
     ap.add_argument("--samples", type=int, default=16)
     return ap.parse_args(argv)
@@ -74,8 +74,8 @@ def main():
         print(f"penumbra: {stage} {100 * frac:5.1f} %", file=sys.stderr, flush=True)
         return True
 
-    report = penumbra.bake(scene, progress=progress, resolution=args.resolution, epsilon=args.epsilon,
-                           output_dir=out)
+    solver = {} if args.epsilon is None else {"epsilon": args.epsilon}
+    report = penumbra.bake(scene, progress=progress, resolution=args.resolution, output_dir=out, **solver)
     blend = os.path.join(out, "cornell_baked.blend")
     t = time.perf_counter()
     bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)

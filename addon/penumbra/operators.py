@@ -9,7 +9,7 @@ class PenumbraSettings(bpy.types.PropertyGroup):
     margin: IntProperty(name="Margin", description="Texels filled past the UV islands", default=4, min=0,
                         max=64)
     epsilon: FloatProperty(name="Quality", description="Refinement threshold, relative to the brightest "
-                           "emitter (smaller is finer and slower)", default=0.002, min=1e-6, max=1.0,
+                           "emitter (smaller is finer and slower)", default=0.0002, min=1e-6, max=1.0,
                            precision=4)
     lightmap: BoolProperty(name="Lightmaps", default=True)
     color_attribute: BoolProperty(name="Color Attributes", default=True)

@@ -5,7 +5,7 @@
 namespace penumbra {
 
 struct Settings {
-    double epsilon = 0.002;      // max radiosity error of a link, relative to the brightest emitter
+    double epsilon = 0.0002;      // max radiosity error of a link, relative to the brightest emitter
     double minSize = 0.01;       // smallest element edge, relative to the scene's bounding-box diagonal
     int visibilityRays = 16;     // rays per link estimate (rounded to a square number of strata)
     int maxIterations = 1000;    // gather + push/pull sweeps per refinement pass
