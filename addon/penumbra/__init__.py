@@ -4,6 +4,7 @@ Python API (once the add-on is enabled, `import penumbra`):
     report = penumbra.bake(scene, progress=None, **settings)
     penumbra.preview(scene, on)
     penumbra.clear(scene)
+    figures = penumbra.compare_cycles(scene, samples=256, out_dir=None)
 See docs/addon.md for the settings and the report.
 """
 bl_info = {
@@ -209,15 +210,23 @@ def summary(report):
             f"residual {_fmt(report.get('residual'))}")
 
 
+def compare_cycles(scene=None, samples=256, out_dir=None, **options):
+    """Compare the bake with Cycles path tracing (camera view, or space="LIGHTMAP"); see compare.py."""
+    from . import compare
+    return compare.compare_cycles(scene, samples=samples, out_dir=out_dir, **options)
+
+
 def _fmt(x):
     return f"{x:.2e}" if isinstance(x, (int, float)) else "?"
 
 
 def register():
-    from . import operators
+    from . import operators, compare
     operators.register()
+    compare.register()
 
 
 def unregister():
-    from . import operators
+    from . import operators, compare
+    compare.unregister()
     operators.unregister()
