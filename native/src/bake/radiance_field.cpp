@@ -44,59 +44,10 @@ RadianceField::RadianceField(const Hierarchy& h) {
         l.value = (e.B - p.emission) / M_PI;
         leaves_.push_back(l);
     }
-    order_.resize(leaves_.size());
-    for (size_t i = 0; i < order_.size(); ++i) order_[i] = int(i);
-    nodes_.reserve(2 * leaves_.size() / 4 + 2);
-    if (!leaves_.empty()) build(0, int(leaves_.size()));
-}
-
-int RadianceField::build(int begin, int end) {
-    int idx = int(nodes_.size());
-    nodes_.push_back(Node{});
-    Bounds box, centers;
-    for (int i = begin; i < end; ++i) {
-        box.extend(leaves_[order_[i]].support);
-        centers.extend(leaves_[order_[i]].center);
-    }
-    nodes_[idx].box = box;
-    if (end - begin <= 4) {
-        nodes_[idx].begin = begin;
-        nodes_[idx].end = end;
-        return idx;
-    }
-    Vec3 d = centers.diagonal();
-    int axis = d.x > d.y ? (d.x > d.z ? 0 : 2) : (d.y > d.z ? 1 : 2);
-    int mid = (begin + end) / 2;
-    std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                     [&](int a, int b) {
-                         double ca = leaves_[a].center[axis], cb = leaves_[b].center[axis];
-                         return ca < cb || (ca == cb && a < b);
-                     });
-    int l = build(begin, mid);
-    int r = build(mid, end);
-    nodes_[idx].left = l;
-    nodes_[idx].right = r;
-    return idx;
-}
-
-template <class F>
-void RadianceField::query(const Bounds& q, F&& visit) const {
-    if (nodes_.empty()) return;
-    int stack[128];
-    int sp = 0;
-    stack[sp++] = 0;
-    while (sp > 0) {
-        const Node& n = nodes_[stack[--sp]];
-        if (n.box.hi.x < q.lo.x || n.box.lo.x > q.hi.x || n.box.hi.y < q.lo.y || n.box.lo.y > q.hi.y ||
-            n.box.hi.z < q.lo.z || n.box.lo.z > q.hi.z)
-            continue;
-        if (n.left < 0) {
-            for (int i = n.begin; i < n.end; ++i) visit(order_[i]);
-        } else if (sp < 126) {
-            stack[sp++] = n.left;
-            stack[sp++] = n.right;
-        }
-    }
+    std::vector<Bounds> boxes;
+    boxes.reserve(leaves_.size());
+    for (const Leaf& l : leaves_) boxes.push_back(l.support);
+    supports_ = BoxTree(std::move(boxes));
 }
 
 double RadianceField::weight(const Leaf& l, const Vec3& p, const Vec3& n) const {
@@ -110,15 +61,12 @@ double RadianceField::weight(const Leaf& l, const Vec3& p, const Vec3& n) const 
 }
 
 Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
-    Bounds q;
-    q.extend(p);
     Rgb sum;
     double wsum = 0;
-    query(q, [&](int i) {
+    auto containsP = [&](const Bounds& b) { return contains(b, p); };
+    supports_.query(containsP, [&](int i) {
         const Leaf& l = leaves_[i];
-        if (p.x < l.support.lo.x || p.x > l.support.hi.x || p.y < l.support.lo.y ||
-            p.y > l.support.hi.y || p.z < l.support.lo.z || p.z > l.support.hi.z)
-            return;
+        if (!contains(l.support, p)) return;
         double w = weight(l, p, n);
         if (w > 0) {
             sum += l.value * w;
@@ -134,7 +82,7 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
         box.extend(p + Vec3{r, r, r});
         double best = HUGE_VAL;
         int bestLeaf = -1;
-        query(box, [&](int i) {
+        supports_.query([&](const Bounds& b) { return overlaps(b, box); }, [&](int i) {
             const Leaf& l = leaves_[i];
             if (dot(l.normal, n) <= 0) return;
             double d2 = length2(l.center - p);

@@ -5,6 +5,7 @@
 #pragma once
 #include <vector>
 
+#include "geometry/box_tree.h"
 #include "hierarchy/element.h"
 
 namespace penumbra {
@@ -25,18 +26,10 @@ private:
         Rgb value;                    // (B - E) / pi
         Bounds support;
     };
-    struct Node {
-        Bounds box;
-        int left = -1, right = -1;    // children, or -1 for a leaf node
-        int begin = 0, end = 0;       // range in order_ for leaf nodes
-    };
-    int build(int begin, int end);
-    template <class F> void query(const Bounds& box, F&& visit) const;
     double weight(const Leaf& l, const Vec3& p, const Vec3& n) const;
 
     std::vector<Leaf> leaves_;
-    std::vector<int> order_;
-    std::vector<Node> nodes_;
+    BoxTree supports_;  // over leaves_[i].support
     double diagonal_ = 0;
 };
 

@@ -1,6 +1,8 @@
 #include "visibility/ray_caster.h"
 
 #include <stdexcept>
+
+#include "visibility/shaft.h"
 #include <vector>
 
 namespace penumbra {
@@ -11,8 +13,14 @@ RayCaster::RayCaster(const Scene& scene) {
     scene_ = rtcNewScene(device_);
     std::vector<float> verts;
     std::vector<unsigned> tris;
-    for (const ScenePolygon& p : scene.polygons) {
+    std::vector<Bounds> boxes;
+    for (size_t pi = 0; pi < scene.polygons.size(); ++pi) {
+        const ScenePolygon& p = scene.polygons[pi];
         if (!p.occludes) continue;
+        Bounds box;
+        for (int k = 0; k < p.geom.n; ++k) box.extend(p.geom.v[k]);
+        boxes.push_back(box);
+        occluderPolygon_.push_back(int(pi));
         unsigned base = unsigned(verts.size() / 3);
         for (int k = 0; k < p.geom.n; ++k) {
             verts.push_back(float(p.geom.v[k].x));
@@ -26,6 +34,7 @@ RayCaster::RayCaster(const Scene& scene) {
         }
     }
     numTriangles_ = tris.size() / 3;
+    occluders_ = BoxTree(std::move(boxes));
     if (numTriangles_ > 0) {
         RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
         float* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
@@ -44,6 +53,19 @@ RayCaster::RayCaster(const Scene& scene) {
 RayCaster::~RayCaster() {
     if (scene_) rtcReleaseScene(scene_);
     if (device_) rtcReleaseDevice(device_);
+}
+
+bool RayCaster::shaftIsClear(const Bounds& a, const Bounds& b, int skipA, int skipB) const {
+    Shaft shaft(a, b);
+    bool clear = true;
+    occluders_.query(
+        [&](const Bounds& node) { return clear && shaft.classify(node) != Shaft::Outside; },
+        [&](int i) {
+            int p = occluderPolygon_[i];
+            if (clear && p != skipA && p != skipB && shaft.classify(occluders_.box(i)) != Shaft::Outside)
+                clear = false;
+        });
+    return clear;
 }
 
 bool RayCaster::occluded(const Vec3& from, const Vec3& to) const {
