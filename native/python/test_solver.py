@@ -36,7 +36,7 @@ def plane_and_lamp(lamp_size=0.5, height=1.0, rho=0.5, emit=10.0, plane=4.0, fla
 
 def test_area_light_over_plane_matches_lambert():
     args = plane_and_lamp()
-    sol = _native.solve(*args, settings={"epsilon": 0.0005})
+    sol = _native.solve(*args)  # the default refinement
     lamp = args[0][4:8].astype(np.float64)
     pts = np.array([[x, y, 0] for x in (-0.3, 0.0, 0.2, 0.45) for y in (-0.25, 0.0, 0.35)], np.float32)
     nrm = np.tile(np.array([0, 0, 1], np.float32), (len(pts), 1))
