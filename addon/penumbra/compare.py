@@ -76,6 +76,7 @@ class _SceneState:
         self.selected = [o.name for o in vl.objects if o.select_get()]
         self.active = vl.objects.active.name if vl.objects.active else None
         self.preview = {o.name for o in scene.objects if o.get("penumbra_preview") is not None}
+        self.images = {i.name for i in bpy.data.images}
 
     def restore(self):
         for ob in self.scene.objects:
@@ -91,6 +92,10 @@ class _SceneState:
         for o in self.vl.objects:
             o.select_set(o.name in self.selected)
         self.vl.objects.active = self.vl.objects.get(self.active) if self.active else None
+        # A render makes the "Render Result" image when the file had none; leave the file as it was.
+        for img in list(bpy.data.images):
+            if img.name not in self.images and img.type == "RENDER_RESULT":
+                bpy.data.images.remove(img)
 
 
 def _path_tracing(scene, samples, bounces, seed):

@@ -1,0 +1,191 @@
+"""Benchmark scenes besides the Cornell box, built procedurally from fixed numbers (two builds are identical).
+
+    import scenes; scenes.build("blockers")      # or "office", "cornell"
+    blender -b --factory-startup --python examples/scenes.py -- --scene office --save office.blend
+
+- blockers: a 4 m x 4 m floor under one square area light, with a 4 x 4 grid of floating cubes at two heights
+  and a table (top and four thin legs) whose shadows overlap: many small blockers at different distances.
+- office: a 6 m x 4.5 m x 3 m closed room lit by two area lights under the ceiling, with four desks, four chairs
+  and a bookcase, in the spirit of the office scene of Soler and Sillion's Fig. 6.
+
+Every object has its own materials, so a Cycles bake can take all objects in one call (one material's active
+image node is the bake target, and sharing it would make objects overwrite each other's lightmap).
+"""
+import math
+import os
+import sys
+
+import bpy
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import cornell_box  # noqa: E402
+
+SCENES = ("cornell", "office", "blockers")
+
+
+def _diffuse(name, color):
+    return cornell_box._diffuse(name, color)
+
+
+class MeshBuilder:
+    """Quads with a material index, merged into one mesh object."""
+
+    def __init__(self):
+        self.verts, self.faces, self.mat_index = [], [], []
+
+    def grid(self, origin, u, v, nu, nv, mat=0):
+        """Quads on origin + s*u + t*v, front normal u x v."""
+        verts, faces = cornell_box._grid(origin, u, v, nu, nv)
+        base = len(self.verts)
+        self.verts += [tuple(p) for p in verts]
+        self.faces += [tuple(k + base for k in f) for f in faces]
+        self.mat_index += [mat] * len(faces)
+
+    def box(self, lo, hi, mat=0, divisions=(1, 1, 1), bottom=True):
+        """An axis-aligned closed box with outward normals; `divisions` cut the faces along x, y, z."""
+        (x0, y0, z0), (x1, y1, z1) = lo, hi
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+        nx, ny, nz = divisions
+        self.grid((x0, y0, z1), (dx, 0, 0), (0, dy, 0), nx, ny, mat)          # top +z
+        if bottom:
+            self.grid((x0, y0, z0), (0, dy, 0), (dx, 0, 0), ny, nx, mat)      # bottom -z
+        self.grid((x0, y0, z0), (dx, 0, 0), (0, 0, dz), nx, nz, mat)          # -y
+        self.grid((x1, y1, z0), (-dx, 0, 0), (0, 0, dz), nx, nz, mat)         # +y
+        self.grid((x0, y1, z0), (0, -dy, 0), (0, 0, dz), ny, nz, mat)         # -x
+        self.grid((x1, y0, z0), (0, dy, 0), (0, 0, dz), ny, nz, mat)          # +x
+
+    def build(self, name, materials, scene=None):
+        me = bpy.data.meshes.new(name)
+        me.from_pydata(self.verts, [], self.faces)
+        for m in materials:
+            me.materials.append(m)
+        me.polygons.foreach_set("material_index", np.array(self.mat_index, np.int32))
+        me.validate()
+        me.update()
+        ob = bpy.data.objects.new(name, me)
+        (scene or bpy.context.scene).collection.objects.link(ob)
+        return ob
+
+
+def _area_light(name, size, energy, location, color=(1.0, 1.0, 1.0), scene=None):
+    light = bpy.data.lights.new(name, "AREA")
+    light.shape = "SQUARE"
+    light.size = size
+    light.energy = energy
+    light.color = color
+    ob = bpy.data.objects.new(name, light)
+    ob.location = location          # faces down (local -Z) with no rotation
+    (scene or bpy.context.scene).collection.objects.link(ob)
+    return ob
+
+
+def _camera(location, rotation_deg, lens, scene):
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.lens = lens
+    cam.location = location
+    cam.rotation_euler = tuple(math.radians(a) for a in rotation_deg)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return cam
+
+
+def _black_world(scene):
+    world = bpy.data.worlds.new("Black")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    world.color = (0, 0, 0)
+    scene.world = world
+
+
+def build_blockers(scene=None):
+    scene = scene or bpy.context.scene
+    obs = {}
+    floor = MeshBuilder()
+    floor.grid((-2, -2, 0), (4, 0, 0), (0, 4, 0), 16, 16)
+    obs["Floor"] = floor.build("Floor", [_diffuse("FloorWhite", (0.7, 0.7, 0.7))], scene)
+    cubes = MeshBuilder()
+    for i in range(4):
+        for j in range(4):
+            x, y = -1.05 + 0.7 * i, -1.05 + 0.7 * j
+            z = 0.35 if (i + j) % 2 == 0 else 0.8      # two heights: penumbrae of different widths overlap
+            h = 0.12 + 0.03 * ((i * 3 + j) % 3)
+            cubes.box((x - h, y - h, z), (x + h, y + h, z + 2 * h), mat=(i + j) % 2)
+    obs["Cubes"] = cubes.build("Cubes", [_diffuse("CubeOrange", (0.75, 0.4, 0.15)),
+                                         _diffuse("CubeBlue", (0.2, 0.35, 0.7))], scene)
+    table = MeshBuilder()
+    table.box((-0.9, 0.9, 0.6), (0.9, 1.7, 0.65), divisions=(6, 3, 1))
+    for x in (-0.85, 0.8):
+        for y in (0.95, 1.6):
+            table.box((x, y, 0.0), (x + 0.05, y + 0.05, 0.6), bottom=False)
+    obs["Table"] = table.build("Table", [_diffuse("TableWood", (0.55, 0.4, 0.25))], scene)
+    obs["Light"] = _area_light("Light", 1.0, 400.0, (0.0, 0.0, 2.5), scene=scene)
+    obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
+    _black_world(scene)
+    return obs
+
+
+def build_office(scene=None):
+    scene = scene or bpy.context.scene
+    W, D, H = 6.0, 4.5, 3.0
+    obs = {}
+    room = MeshBuilder()
+    # Inward-facing walls, cut into 0.5 m faces so per-face errors resolve the light's falloff.
+    room.grid((-W / 2, -D / 2, 0), (W, 0, 0), (0, D, 0), 12, 9, mat=0)            # floor, +z
+    room.grid((-W / 2, -D / 2, H), (0, D, 0), (W, 0, 0), 9, 12, mat=2)            # ceiling, -z
+    room.grid((-W / 2, D / 2, 0), (W, 0, 0), (0, 0, H), 12, 6, mat=1)             # back wall, -y
+    room.grid((W / 2, -D / 2, 0), (0, 0, H), (0, D, 0), 6, 9, mat=1)              # right wall, -x
+    room.grid((-W / 2, -D / 2, 0), (0, D, 0), (0, 0, H), 9, 6, mat=3)             # left wall, +x
+    room.grid((-W / 2, -D / 2, 0), (0, 0, H), (W, 0, 0), 6, 12, mat=1)            # front wall, +y
+    obs["Room"] = room.build("Room", [_diffuse("OfficeFloor", (0.45, 0.35, 0.25)),
+                                      _diffuse("OfficeWall", (0.75, 0.75, 0.72)),
+                                      _diffuse("OfficeCeiling", (0.8, 0.8, 0.8)),
+                                      _diffuse("OfficeAccent", (0.6, 0.25, 0.2))], scene)
+    fur = MeshBuilder()
+    for cx in (-1.4, 1.4):
+        for cy in (-0.6, 0.9):
+            fur.box((cx - 0.7, cy - 0.4, 0.72), (cx + 0.7, cy + 0.4, 0.76), mat=0, divisions=(4, 2, 1))
+            for sx in (-0.65, 0.6):
+                for sy in (-0.35, 0.3):
+                    fur.box((cx + sx, cy + sy, 0.0), (cx + sx + 0.05, cy + sy + 0.05, 0.72), mat=0,
+                            bottom=False)
+            # A chair in front of each desk: seat, back and four legs.
+            ch = cy - 0.75
+            fur.box((cx - 0.22, ch - 0.22, 0.42), (cx + 0.22, ch + 0.22, 0.46), mat=1)
+            fur.box((cx - 0.22, ch - 0.26, 0.46), (cx + 0.22, ch - 0.22, 0.9), mat=1)
+            for sx in (-0.2, 0.17):
+                for sy in (-0.2, 0.17):
+                    fur.box((cx + sx, ch + sy, 0.0), (cx + sx + 0.03, ch + sy + 0.03, 0.42), mat=1, bottom=False)
+    # A bookcase against the back wall: a closed box with three shelves' worth of fronts.
+    fur.box((-1.0, D / 2 - 0.35, 0.0), (1.0, D / 2 - 0.01, 1.9), mat=2, divisions=(4, 1, 4), bottom=False)
+    obs["Furniture"] = fur.build("Furniture", [_diffuse("Desk", (0.55, 0.4, 0.25)),
+                                               _diffuse("Chair", (0.15, 0.2, 0.45)),
+                                               _diffuse("Bookcase", (0.35, 0.3, 0.28))], scene)
+    obs["Light1"] = _area_light("Light1", 0.8, 300.0, (-1.4, 0.2, H - 0.05), (1.0, 0.95, 0.85), scene)
+    obs["Light2"] = _area_light("Light2", 0.8, 300.0, (1.4, 0.2, H - 0.05), (1.0, 0.95, 0.85), scene)
+    obs["Camera"] = _camera((-2.6, -2.0, 2.2), (70.0, 0.0, -52.0), 18.0, scene)
+    _black_world(scene)
+    return obs
+
+
+def build(name, scene=None):
+    """Build a scene into the current (empty) file; returns {name: object}."""
+    if name == "cornell":
+        return cornell_box.build(scene)
+    if name == "office":
+        return build_office(scene)
+    if name == "blockers":
+        return build_blockers(scene)
+    raise ValueError(f"unknown scene {name!r}; known: {', '.join(SCENES)}")
+
+
+if __name__ == "__main__":
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    which = argv[argv.index("--scene") + 1] if "--scene" in argv else "office"
+    cornell_box.clear_scene()
+    build(which)
+    if "--save" in argv:
+        path = argv[argv.index("--save") + 1]
+        bpy.ops.wm.save_as_mainfile(filepath=bpy.path.abspath(path))
+        print("saved", path)
