@@ -80,7 +80,10 @@ def prepare(name):
         for i, m in enumerate(ob.data.materials):
             if m is not None and m.users > 1:
                 ob.data.materials[i] = m.copy()
-        unwrap(ob)
+    # Penumbra bakes every mesh (emitters too) into the named UV map, so every mesh needs one.
+    for o in obs.values():
+        if o.type == "MESH":
+            unwrap(o)
     return receivers
 
 
