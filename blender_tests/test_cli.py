@@ -41,3 +41,60 @@ def test_cli_fails_clearly(empty_scene, tmp_path):
     assert r.returncode == 0 and "--resolution" in r.stdout
     r = _run(blend, "--no-such-option")
     assert r.returncode != 0
+
+
+def _box_file(tmp_path, **panel):
+    bpy.ops.wm.read_homefile(use_empty=True)
+    cornell_box.build()
+    for k, v in panel.items():
+        setattr(bpy.context.scene.penumbra, k, v)
+    blend = str(tmp_path / "box.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    return blend
+
+
+def test_cli_uses_the_panel_settings_and_the_options_override_them(empty_scene, tmp_path):
+    blend = _box_file(tmp_path, resolution=24, color_attribute=False)
+    out = tmp_path / "a"
+    r = _run(blend, "--out", str(out), "--quality", "draft", "--save", "none")
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads((out / "report.json").read_text())
+    assert report["settings"]["resolution"] == 24                # from the file's panel
+    assert report["settings"]["targets"] == ["LIGHTMAP"]
+    assert report["settings"]["epsilon"] == 0.002 and report["settings"]["min_size"] == 0.02   # --quality
+    assert not (out / "baked.blend").exists()
+    out = tmp_path / "b"
+    r = _run(blend, "--out", str(out), "--quality", "draft", "--resolution", "16", "--targets", "color",
+             "--epsilon", "0.004", "--visibility-rays", "4", "--refine-passes", "1")
+    assert r.returncode == 0, r.stderr[-2000:]
+    report = json.loads((out / "report.json").read_text())
+    s = report["settings"]
+    assert (s["resolution"], s["targets"], s["epsilon"], s["visibility_rays"]) == (16, ["COLOR_ATTRIBUTE"], 0.004, 4)
+    assert report["refine_passes"] == 1
+    assert not list(out.glob("*.exr"))                           # color attributes only
+
+
+def test_cli_exit_codes(empty_scene, tmp_path):
+    blend = _box_file(tmp_path)
+    r = _run(blend, "--help")
+    assert r.returncode == 0
+    for flag in ("--quality", "--targets", "--min-size", "--visibility-rays", "--refine-passes", "Exit codes"):
+        assert flag in r.stdout
+    r = _run(blend, "--out", str(tmp_path / "o"), "--resolution", "3")
+    assert r.returncode == 2 and "must be between 8 and 16384" in r.stderr
+    r = _run(blend, "--out", str(tmp_path / "o"), "--targets", "texture")
+    assert r.returncode == 2 and "lightmap, color or both" in r.stderr
+    # A scene that cannot be baked: no light. The message says what to add; report.json holds it too.
+    bpy.data.objects.remove(bpy.data.objects["Lamp"])
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    out = tmp_path / "dark"
+    r = _run(blend, "--out", str(out), "--quality", "draft")
+    assert r.returncode == 3, r.stderr[-2000:]
+    assert "penumbra: error: nothing emits light" in r.stderr
+    assert json.loads((out / "report.json").read_text())["exit_code"] == 3
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    r = _run(blend, "--out", str(tmp_path / "empty"))
+    assert r.returncode == 3 and "nothing to bake" in r.stderr
+    r = _run(blend, "--out", str(tmp_path / "empty"), "--scene", "Nope")
+    assert r.returncode == 2 and "no scene named 'Nope'" in r.stderr

@@ -11,3 +11,4 @@ echo "== native module tests (/usr/bin/python3 -m pytest)"
 /usr/bin/python3 -m pytest -q -p no:cacheprovider native/python
 echo "== add-on tests inside blender -b"
 blender -b --factory-startup --python-exit-code 1 --python blender_tests/run.py -- -q -p no:cacheprovider blender_tests
+/usr/bin/python3 -m pytest -q -p no:cacheprovider --noconftest blender_tests/ui   # the Bake button under Xvfb (blender_tests/ui/drive.py)

@@ -12,7 +12,7 @@ bl_info = {
     "author": "Penumbra developers",
     "version": (0, 1, 0),
     "blender": (3, 4, 0),
-    "location": "Properties > Render > Penumbra",
+    "location": "Properties > Render > Penumbra; 3D View > Sidebar > Penumbra",
     "description": "Bakes diffuse global illumination with a native hierarchical-radiosity solver",
     "category": "Render",
 }
@@ -102,59 +102,39 @@ def _depsgraph(scene, vl):
     return vl.depsgraph
 
 
-def bake(scene=None, progress=None, **settings):
-    """Solve the scene's diffuse global illumination and store it in every baked object.
+class Job:
+    """One bake in three steps, so that the solve can run in a worker thread while Blender stays responsive:
 
-    `progress(stage, fraction)` is called during the bake (from the solver's thread while solving, so it must
-    not touch bpy); returning False cancels, and `Cancelled` is raised. Nothing in the .blend changes unless
-    the bake succeeds. Returns a JSON-serialisable report.
+        job = penumbra.begin(scene, **settings)   # main thread: read the scene (bpy)
+        job.solve(progress)                       # any thread: the native solve, never touches bpy
+        report = job.finish(progress)             # main thread: write the results into the .blend
+
+    `bake()` runs the three in a row. Nothing in the .blend changes before `finish`, and `finish` is
+    all-or-nothing; a job that is never finished leaves the scene as it was.
     """
-    import bpy
-    scene = scene or bpy.context.scene
-    s, solver_settings = _settings(settings)
-    vl = _view_layer(scene)
-    report = {"settings": _jsonable({**s, **solver_settings}), "times": {}, "warnings": [], "notes": [],
-              "skipped": []}
-    t_start = time.perf_counter()
 
-    def step(stage, frac):
-        if progress is not None and progress(stage, frac) is False:
-            raise Cancelled(f"cancelled during {stage}") if Cancelled else RuntimeError("cancelled")
+    def __init__(self, scene, view_layer, settings, solver_settings, exported, report, t_start):
+        self.scene_name = scene.name
+        self.view_layer_name = view_layer.name
+        self.settings = settings
+        self.solver_settings = solver_settings
+        self.exported = exported
+        self.report = report
+        self.solution = None
+        self._t_start = t_start
 
-    # Export reads evaluated meshes, which do not see edits still held in edit mode.
-    edit_obj = bpy.context.edit_object if bpy.context.scene == scene else None
-    if edit_obj is not None:
-        bpy.ops.object.mode_set(mode="OBJECT")
-    try:
-        step("export", 0.0)
-        t = time.perf_counter()
-        ex = export.export_scene(scene, vl, _depsgraph(scene, vl), s["selection_only"])
-        report["times"]["export"] = time.perf_counter() - t
-        report["skipped"] = ex.skipped
-        report["warnings"] += ex.warnings
-        report["notes"] += ex.notes
-        report["export"] = ex.counts
-        if len(ex.polygons) == 0:
-            raise BakeError("nothing to bake: the scene has no visible mesh faces or area lights"
-                            + (" among the selected objects" if s["selection_only"] else ""))
-        if not ex.bake_objects:
-            raise BakeError("no object can be baked (visible, non-instanced mesh objects with faces); skipped: "
-                            + ", ".join(f"{x['name']} ({x['reason']})" for x in ex.skipped))
-        if s["uv_map"]:
-            missing = [n for n in ex.bake_objects if s["uv_map"] not in bpy.data.objects[n].data.uv_layers]
-            if missing:
-                raise BakeError(f"UV map '{s['uv_map']}' is missing on: {', '.join(missing)}")
-        if s["output_dir"]:
-            os.makedirs(bpy.path.abspath(s["output_dir"]), exist_ok=True)
-
-        step("solve", 0.0)
+    def solve(self, progress=None):
+        """Run the native solver; safe in a worker thread. Raises `Cancelled` when progress returns False."""
+        ex, report = self.exported, self.report
+        if progress is not None and progress("solve", 0.0) is False:
+            raise Cancelled("cancelled during solve") if Cancelled else RuntimeError("cancelled")
         t = time.perf_counter()
         cb = None
         if progress is not None:
             def cb(stage, frac):
                 return progress(stage, frac) is not False
         solution = _native.solve(ex.vertices, ex.polygons, ex.reflectance, ex.emission, ex.flags,
-                                 ex.object_index, ex.object_names, solver_settings, cb)
+                                 ex.object_index, ex.object_names, self.solver_settings, cb)
         report["times"]["solve"] = time.perf_counter() - t
         native_report = _jsonable(dict(solution.report))
         report["solver"] = native_report
@@ -167,25 +147,140 @@ def bake(scene=None, progress=None, **settings):
             report["warnings"].append(f"solver: not converged after {native_report.get('iterations')} "
                                       f"iterations (residual {_fmt(native_report.get('residual'))}); raise "
                                       f"max_iterations or tolerance")
+        self.solution = solution
+        return self
 
-        step("write-back", 0.0)
-        t = time.perf_counter()
-        ws = dict(s)
-        if ws["output_dir"]:
-            ws["output_dir"] = bpy.path.abspath(ws["output_dir"])
-        # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
-        outputs = writeback.write_all(scene, vl, ex.bake_objects, solution, _native, ws, report,
-                                      progress=step if progress is not None else None)
-        report["times"]["write_back"] = time.perf_counter() - t
-        report["objects_baked"] = list(ex.bake_objects)
-        report["outputs"] = outputs
-        step("done", 1.0)
-    finally:
-        if edit_obj is not None and edit_obj.name in bpy.data.objects:
-            vl.objects.active = edit_obj
+    def finish(self, progress=None):
+        """Write the solved bake into the scene (main thread); all or nothing. Returns the report."""
+        import bpy
+        if self.solution is None:
+            raise BakeError("finish() needs a solved job: call solve() first")
+        scene = bpy.data.scenes.get(self.scene_name)
+        if scene is None:
+            raise BakeError(f"the scene '{self.scene_name}' was removed while the bake ran")
+        vl = scene.view_layers.get(self.view_layer_name) or _view_layer(scene)
+        gone = [n for n in self.exported.bake_objects if n not in bpy.data.objects]
+        if gone:
+            raise BakeError(f"object(s) removed or renamed while the bake ran: {', '.join(gone)}; bake again")
+        report, s = self.report, self.settings
+        step = _stepper(progress)
+        with _object_mode(scene, vl):
+            step("write-back", 0.0)
+            t = time.perf_counter()
+            ws = dict(s)
+            if ws["output_dir"]:
+                ws["output_dir"] = bpy.path.abspath(ws["output_dir"])
+            # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
+            outputs = writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws,
+                                          report, progress=step if progress is not None else None)
+            report["times"]["write_back"] = time.perf_counter() - t
+            report["objects_baked"] = list(self.exported.bake_objects)
+            report["outputs"] = outputs
+            step("done", 1.0)
+        report["times"]["total"] = time.perf_counter() - self._t_start
+        return _jsonable(report)
+
+
+def _stepper(progress):
+    def step(stage, frac):
+        if progress is not None and progress(stage, frac) is False:
+            raise Cancelled(f"cancelled during {stage}") if Cancelled else RuntimeError("cancelled")
+    return step
+
+
+class _object_mode:
+    """Export and write-back read and write mesh data, which edit mode holds back; leave it meanwhile."""
+
+    def __init__(self, scene, vl):
+        self.scene, self.vl, self.edit_obj = scene, vl, None
+
+    def __enter__(self):
+        import bpy
+        self.edit_obj = bpy.context.edit_object if bpy.context.scene == self.scene else None
+        if self.edit_obj is not None:
+            bpy.ops.object.mode_set(mode="OBJECT")
+        return self
+
+    def __exit__(self, *exc):
+        import bpy
+        if self.edit_obj is not None and self.edit_obj.name in bpy.data.objects:
+            self.vl.objects.active = self.edit_obj
             bpy.ops.object.mode_set(mode="EDIT")
-    report["times"]["total"] = time.perf_counter() - t_start
-    return _jsonable(report)
+        return False
+
+
+def _opted_out(ob):
+    # Read the stored value rather than ob.penumbra_settings.bake: touching the registered group creates it on
+    # the object, and a bake must not change objects it does not write to. Unset means the default, True.
+    group = ob.get("penumbra_settings")
+    return group is not None and not group.get("bake", True)
+
+
+def begin(scene=None, progress=None, **settings):
+    """Read the scene and check that it can be baked (main thread). Returns a `Job` to solve and finish.
+
+    Raises `BakeError` with a message naming what to fix (no mesh, no light, ...), TypeError or ValueError
+    for bad settings."""
+    import bpy
+    scene = scene or bpy.context.scene
+    s, solver_settings = _settings(settings)
+    vl = _view_layer(scene)
+    report = {"settings": _jsonable({**s, **solver_settings}), "times": {}, "warnings": [], "notes": [],
+              "skipped": []}
+    t_start = time.perf_counter()
+    step = _stepper(progress)
+    with _object_mode(scene, vl):
+        step("export", 0.0)
+        t = time.perf_counter()
+        ex = export.export_scene(scene, vl, _depsgraph(scene, vl), s["selection_only"])
+        report["times"]["export"] = time.perf_counter() - t
+        # Opted-out objects still cast and reflect light; they only get no lightmap or attribute.
+        for name in [n for n in ex.bake_objects if _opted_out(bpy.data.objects[n])]:
+            ex.bake_objects.remove(name)
+            ex.skip(name, "not baked: 'Bake' is off in its Object Properties > Penumbra (it still casts and "
+                          "reflects light)")
+        report["skipped"] = ex.skipped
+        report["warnings"] += ex.warnings
+        report["notes"] += ex.notes
+        report["export"] = ex.counts
+        where = " among the selected objects" if s["selection_only"] else ""
+        if len(ex.polygons) == 0:
+            raise BakeError("nothing to bake: the scene has no visible mesh faces or area lights" + where
+                            + _skipped_text(ex.skipped))
+        if not ex.bake_objects:
+            raise BakeError("no object can be baked (visible, non-instanced mesh objects with faces)" + where
+                            + _skipped_text(ex.skipped))
+        if not (ex.emission > 0).any():
+            lights = [x for x in ex.skipped if "light" in x["reason"]]
+            raise BakeError("nothing emits light" + where + ": add an Area light, or a material with an "
+                            "Emission shader or Principled Emission above zero"
+                            + (" (not supported: " + ", ".join(f"{x['name']}: {x['reason']}" for x in lights)
+                               + ")" if lights else ""))
+        if s["uv_map"]:
+            missing = [n for n in ex.bake_objects if s["uv_map"] not in bpy.data.objects[n].data.uv_layers]
+            if missing:
+                raise BakeError(f"UV map '{s['uv_map']}' is missing on: {', '.join(missing)}")
+        if s["output_dir"]:
+            os.makedirs(bpy.path.abspath(s["output_dir"]), exist_ok=True)
+    return Job(scene, vl, s, solver_settings, ex, report, t_start)
+
+
+def _skipped_text(skipped):
+    return ("; skipped: " + ", ".join(f"{x['name']} ({x['reason']})" for x in skipped)) if skipped else ""
+
+
+def bake(scene=None, progress=None, **settings):
+    """Solve the scene's diffuse global illumination and store it in every baked object.
+
+    `progress(stage, fraction)` is called during the bake (from the solver's thread while solving, so it must
+    not touch bpy); returning False cancels, and `Cancelled` is raised. Nothing in the .blend changes unless
+    the bake succeeds. Returns a JSON-serialisable report.
+    """
+    import bpy
+    scene = scene or bpy.context.scene
+    # One mode switch for the whole bake; the inner ones in begin() and finish() then have nothing to do.
+    with _object_mode(scene, _view_layer(scene)):
+        return begin(scene, progress, **settings).solve(progress).finish(progress)
 
 
 def preview(scene, on):
@@ -221,12 +316,16 @@ def _fmt(x):
 
 
 def register():
-    from . import operators, compare
+    from . import properties, operators, panels, compare
+    properties.register()
     operators.register()
+    panels.register()
     compare.register()
 
 
 def unregister():
-    from . import operators, compare
+    from . import properties, operators, panels, compare
     compare.unregister()
+    panels.unregister()
     operators.unregister()
+    properties.unregister()

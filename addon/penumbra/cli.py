@@ -2,7 +2,10 @@
 
     blender -b scene.blend --python-exit-code 1 --python <addon>/penumbra/cli.py -- --out DIR [options]
 
-Progress goes to stderr, the report to DIR/report.json; the exit code is non-zero when the bake fails.
+<addon> is ~/.config/blender/3.4/scripts/addons when the add-on was installed from the zip, or build/addon in a
+build. The settings saved in the file's Penumbra panel are used; every option below overrides one of them.
+Progress goes to stderr, the report to DIR/report.json. Exit codes: 0 baked, 2 bad option or setting,
+3 the scene cannot be baked (the message says why and names the object), 4 any other failure.
 Run with `-- --help` for the options.
 """
 import argparse
@@ -11,33 +14,96 @@ import os
 import sys
 import time
 
+EXIT_OK, EXIT_USAGE, EXIT_SCENE, EXIT_FAILED = 0, 2, 3, 4
+QUALITY = ("draft", "medium", "high")
+TARGETS = {"lightmap": {"LIGHTMAP"}, "color": {"COLOR_ATTRIBUTE"}, "both": {"LIGHTMAP", "COLOR_ATTRIBUTE"}}
 
-def parse(argv):
+
+def _ranged(kind, lo, hi):
+    def parse(text):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got "
+                                             f"{text!r}")
+        if not (lo <= v <= hi) or v != v:
+            raise argparse.ArgumentTypeError(f"must be between {lo} and {hi}, got {text}")
+        return v
+    return parse
+
+
+def _targets(text):
+    t = text.strip().lower()
+    if t in TARGETS:
+        return TARGETS[t]
+    parts = {p.strip().upper() for p in text.split(",") if p.strip()}
+    if parts and parts <= {"LIGHTMAP", "COLOR_ATTRIBUTE"}:
+        return parts          # the older spelling LIGHTMAP,COLOR_ATTRIBUTE
+    raise argparse.ArgumentTypeError(f"must be lightmap, color or both, got {text!r}")
+
+
+def parser():
     ap = argparse.ArgumentParser(
-        prog="blender -b FILE.blend --python-exit-code 1 --python penumbra/cli.py --",
-        description="Bake the scene's diffuse global illumination with Penumbra.")
-    ap.add_argument("--out", required=True, help="output folder: report.json and the lightmaps as EXR")
-    ap.add_argument("--resolution", type=int, default=256, help="lightmap size in texels (default 256)")
-    ap.add_argument("--margin", type=int, default=4, help="texels filled past the UV islands (default 4)")
-    ap.add_argument("--uv-map", default=None, help="existing UV map for the lightmaps (default: unwrap "
-                    "'PenumbraLightmap')")
-    ap.add_argument("--targets", default="LIGHTMAP,COLOR_ATTRIBUTE",
-                    help="comma-separated subset of LIGHTMAP,COLOR_ATTRIBUTE")
-    ap.add_argument("--selection-only", action="store_true", help="export only the selected objects")
-    ap.add_argument("--epsilon", type=float, help="solver refinement threshold")
-    ap.add_argument("--min-size", type=float, help="smallest element edge, relative to the scene diagonal")
-    ap.add_argument("--max-iterations", type=int)
-    ap.add_argument("--tolerance", type=float)
-    ap.add_argument("--threads", type=int, help="solver threads (0 = all cores)")
-    ap.add_argument("--save", metavar="FILE.blend", help="save the baked .blend here (default: DIR/baked.blend; "
-                    "'none' to skip)")
+        prog="blender -b FILE.blend --python-exit-code 1 --python <addon>/penumbra/cli.py --",
+        description="Bake the scene's diffuse global illumination with Penumbra. Unless an option says "
+                    "otherwise, the settings saved in the file's Penumbra panel are used.",
+        epilog="Exit codes: 0 baked; 2 bad option or setting; 3 the scene cannot be baked (no mesh, nothing "
+               "emits light, missing UV map, bad geometry: the message names the object); 4 other failure.")
+    ap.add_argument("--out", required=True, metavar="DIR",
+                    help="output folder: report.json, the lightmaps as EXR and baked.blend")
+    ap.add_argument("--quality", choices=QUALITY, type=str.lower,
+                    help="solver preset: draft (fastest), medium, high (the panel's Quality); --epsilon and "
+                         "--min-size override its thresholds")
+    ap.add_argument("--targets", type=_targets, metavar="{lightmap,color,both}",
+                    help="bake into lightmap images, color attributes or both")
+    ap.add_argument("--resolution", type=_ranged(int, 8, 16384), metavar="N",
+                    help="lightmap width and height in pixels")
+    ap.add_argument("--margin", type=_ranged(int, 0, 64), metavar="N", help="pixels filled around UV islands")
+    ap.add_argument("--uv-map", metavar="NAME",
+                    help="existing UV map for the lightmaps (default: create and unwrap 'PenumbraLightmap')")
+    sel = ap.add_mutually_exclusive_group()
+    sel.add_argument("--selection-only", dest="selection_only", action="store_const", const=True,
+                     help="bake only the objects selected in the file (the others are left out of the solve)")
+    sel.add_argument("--all", dest="selection_only", action="store_const", const=False,
+                     help="bake every visible mesh object")
+    ap.add_argument("--epsilon", type=_ranged(float, 1e-7, 1.0), metavar="X",
+                    help="refinement threshold, relative to the brightest light (smaller: finer, slower)")
+    ap.add_argument("--min-size", type=_ranged(float, 1e-5, 1.0), metavar="X",
+                    help="smallest patch, relative to the scene's bounding-box diagonal")
+    ap.add_argument("--visibility-rays", type=_ranged(int, 1, 1024), metavar="N",
+                    help="shadow rays per partly hidden link")
+    ap.add_argument("--max-iterations", type=_ranged(int, 1, 100000), metavar="N",
+                    help="upper limit on the light-bounce iterations")
+    ap.add_argument("--tolerance", type=_ranged(float, 1e-9, 0.5), metavar="X",
+                    help="convergence: stop when the light changes by less than this fraction")
+    ap.add_argument("--refine-passes", type=_ranged(int, 1, 16), metavar="N",
+                    help="times the subdivision is revisited once bounced light is known")
+    ap.add_argument("--threads", type=_ranged(int, 0, 1024), metavar="N", help="solver threads (0: all cores)")
+    ap.add_argument("--save", metavar="FILE.blend",
+                    help="save the baked .blend here (default: DIR/baked.blend; 'none' to skip)")
     ap.add_argument("--scene", help="scene name (default: the active scene)")
-    return ap.parse_args(argv)
+    return ap
+
+
+def settings_from(panel, args):
+    """The bake settings: the panel's (if the file has them), overridden by the options given."""
+    from penumbra.properties import PRESETS
+    s = dict(panel.as_settings()) if panel is not None else {}
+    if args.quality:
+        s.update(PRESETS[args.quality.upper()])
+    for key in ("resolution", "margin", "uv_map", "selection_only", "epsilon", "min_size", "visibility_rays",
+                "max_iterations", "tolerance", "refine_passes", "threads"):
+        v = getattr(args, key)
+        if v is not None:
+            s[key] = v
+    if args.targets is not None:
+        s["targets"] = args.targets
+    return s
 
 
 def main():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
-    args = parse(argv)      # --help and bad options exit here, before Blender data is touched
+    args = parser().parse_args(argv)      # --help and bad options exit here (0 and 2), before Blender data
 
     import bpy
     here = os.path.dirname(os.path.abspath(__file__))
@@ -46,34 +112,44 @@ def main():
     import addon_utils
     mod = addon_utils.enable(os.path.basename(here), default_set=True)
     if mod is None:
-        raise SystemExit("penumbra: the add-on could not be enabled (see the error above)")
+        print("penumbra: error: the add-on could not be enabled (see the error above)", file=sys.stderr)
+        sys.exit(EXIT_FAILED)
     import penumbra
 
+    if args.scene and args.scene not in bpy.data.scenes:
+        print(f"penumbra: error: no scene named '{args.scene}' in {bpy.data.filepath or 'the file'}; scenes: "
+              f"{', '.join(s.name for s in bpy.data.scenes)}", file=sys.stderr)
+        sys.exit(EXIT_USAGE)
     scene = bpy.data.scenes[args.scene] if args.scene else bpy.context.scene
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
+    settings = settings_from(getattr(scene, "penumbra", None), args)
+    settings["output_dir"] = out
     t0 = time.perf_counter()
     last = {"stage": None, "t": 0.0}
 
     def progress(stage, frac):
         now = time.perf_counter()
         if stage != last["stage"] or now - last["t"] > 1.0:
-            print(f"penumbra: {stage} {100 * frac:5.1f} % ({now - t0:.1f} s)", file=sys.stderr, flush=True)
+            print(f"penumbra: {stage} {100 * min(max(frac, 0.0), 1.0):5.1f} % ({now - t0:.1f} s)",
+                  file=sys.stderr, flush=True)
             last.update(stage=stage, t=now)
         return True
 
-    settings = {"resolution": args.resolution, "margin": args.margin, "uv_map": args.uv_map,
-                "targets": {t.strip().upper() for t in args.targets.split(",") if t.strip()},
-                "selection_only": args.selection_only, "output_dir": out, "epsilon": args.epsilon,
-                "min_size": args.min_size, "max_iterations": args.max_iterations, "tolerance": args.tolerance,
-                "threads": args.threads}
+    def fail(code, e):
+        print(f"penumbra: error: {e}", file=sys.stderr, flush=True)
+        with open(os.path.join(out, "report.json"), "w") as f:
+            json.dump({"error": str(e), "type": type(e).__name__, "exit_code": code,
+                       "settings": penumbra._jsonable(settings)}, f, indent=1)
+        sys.exit(code)
+
     try:
         report = penumbra.bake(scene, progress=progress, **settings)
+    except (TypeError, penumbra.BakeError, ValueError) as e:
+        # Bad settings are caught by the options above; what reaches here is about the scene.
+        fail(EXIT_SCENE, e)
     except Exception as e:
-        print(f"penumbra: bake failed: {e}", file=sys.stderr, flush=True)
-        with open(os.path.join(out, "report.json"), "w") as f:
-            json.dump({"error": str(e), "type": type(e).__name__}, f, indent=1)
-        sys.exit(2)
+        fail(EXIT_FAILED, e)
     save = args.save or os.path.join(out, "baked.blend")
     if save.lower() != "none":
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(save), copy=True)

@@ -1,0 +1,219 @@
+"""Every panel setting changes what the Bake operator does; settings and the last report are saved with the file;
+problems reach the panel's Last Bake by object and material name."""
+import json
+import time
+
+import bpy
+import numpy as np
+import pytest
+
+import cornell_box
+import helpers
+
+FAST = {"epsilon": 0.004, "resolution": 16}
+
+
+def _box(scene):
+    cornell_box.build()
+    s = scene.penumbra
+    s.epsilon = FAST["epsilon"]
+    s.resolution = FAST["resolution"]
+    return s
+
+
+def _last(scene):
+    return json.loads(scene.penumbra.last_report)
+
+
+def test_quality_presets_set_the_solver_thresholds(empty_scene):
+    s = _box(empty_scene)
+    assert s.quality == "CUSTOM"                   # epsilon 0.004 is no preset
+    from penumbra.properties import PRESETS
+    for name, values in PRESETS.items():
+        s.quality = name
+        assert s.epsilon == pytest.approx(values["epsilon"]) and s.min_size == pytest.approx(values["min_size"])
+    s.quality = "DRAFT"
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    used = _last(empty_scene)["settings"]
+    assert used["epsilon"] == pytest.approx(0.002) and used["min_size"] == pytest.approx(0.02)
+    draft_elements = _last(empty_scene)["elements"]
+    s.quality = "MEDIUM"
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    assert _last(empty_scene)["elements"] > draft_elements      # a finer preset subdivides more
+    # Editing a threshold by hand leaves the preset; typing the preset's values back selects it again.
+    s.epsilon = 0.001
+    assert s.quality == "CUSTOM"
+    s.epsilon = PRESETS["MEDIUM"]["epsilon"]
+    assert s.quality == "MEDIUM"
+
+
+def test_resolution_margin_and_targets(empty_scene):
+    s = _box(empty_scene)
+    s.lightmap, s.color_attribute = True, False
+    s.margin = 0
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    floor = bpy.data.objects["Floor"]
+    assert tuple(bpy.data.images["Penumbra_Floor"].size) == (16, 16)
+    assert "Penumbra" not in floor.data.attributes
+    s.resolution = 40
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    assert tuple(bpy.data.images["Penumbra_Floor"].size) == (40, 40)
+    lit = lambda: (helpers.image_pixels(bpy.data.images["Penumbra_TallBlock"])[..., :3].max(axis=2) > 0).mean()
+    lit0 = lit()
+    s.margin = 3
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    # The block's islands leave gaps; the margin fills texels around them, so more of the image is lit.
+    assert lit() > lit0 + 0.02
+    s.lightmap, s.color_attribute = False, True
+    bpy.ops.penumbra.clear()
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    assert "Penumbra_Floor" not in bpy.data.images
+    assert floor.data.attributes["Penumbra"].data_type == "FLOAT_COLOR"
+    s.color_attribute = False
+    assert not bpy.ops.penumbra.bake.poll()        # no target: the button is disabled, with a hint
+
+
+def test_opt_out_skips_the_object_but_keeps_its_light(empty_scene):
+    s = _box(empty_scene)
+    s.lightmap = False
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    ceiling_all = np.array([c.color[:] for c in bpy.data.objects["Ceiling"].data.attributes["Penumbra"].data])
+    bpy.ops.penumbra.clear()
+    floor = bpy.data.objects["Floor"]
+    floor.penumbra_settings.bake = False
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    report = _last(empty_scene)
+    assert "Floor" not in report["objects_baked"] and "Ceiling" in report["objects_baked"]
+    assert "Penumbra" not in floor.data.attributes and "penumbra" not in floor.keys()
+    assert any(x["name"] == "Floor" and "Object Properties" in x["reason"] for x in report["skipped"])
+    # The floor still bounces light onto the ceiling: the ceiling's bake is the same as with the floor baked.
+    ceiling = np.array([c.color[:] for c in bpy.data.objects["Ceiling"].data.attributes["Penumbra"].data])
+    np.testing.assert_allclose(ceiling, ceiling_all, rtol=1e-5, atol=1e-7)
+
+
+def test_selected_only(empty_scene):
+    s = _box(empty_scene)
+    s.color_attribute = False
+    for ob in empty_scene.objects:
+        ob.select_set(ob.name in ("Floor", "Lamp"))
+    s.selection_only = True
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    assert sorted(_last(empty_scene)["objects_baked"]) == ["Floor", "Lamp"]
+    assert "Penumbra_BackWall" not in bpy.data.images
+
+
+def test_advanced_settings_reach_the_solver(empty_scene):
+    s = _box(empty_scene)
+    s.color_attribute = False
+    s.visibility_rays, s.refine_passes, s.threads, s.tolerance = 4, 1, 1, 1e-3
+    s.max_iterations = 1
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    r = _last(empty_scene)
+    assert r["settings"]["visibility_rays"] == 4 and r["settings"]["threads"] == 1
+    assert r["refine_passes"] == 1 and r["iterations"] <= 1
+    assert any("not converged" in w for w in r["warnings"])     # max_iterations 1 stops the bounces early
+
+
+def test_settings_and_report_are_saved_with_the_file(empty_scene, tmp_path):
+    s = _box(empty_scene)
+    s.quality = "DRAFT"
+    s.resolution, s.margin, s.lightmap = 24, 2, False
+    bpy.data.objects["TallBlock"].penumbra_settings.bake = False
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    path = str(tmp_path / "saved.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    s = bpy.context.scene.penumbra
+    assert (s.quality, s.resolution, s.margin, s.lightmap, s.color_attribute) == ("DRAFT", 24, 2, False, True)
+    assert bpy.data.objects["TallBlock"].penumbra_settings.bake is False
+    assert bpy.data.objects["Floor"].penumbra_settings.bake is True
+    assert s.report()["settings"]["resolution"] == 24
+    # The window manager's copy (this session's outcome) does not come back with another file.
+    assert bpy.context.window_manager.penumbra.outcome == ""
+
+
+def _fail(scene):
+    with pytest.raises(RuntimeError):
+        bpy.ops.penumbra.bake()
+    rt = bpy.context.window_manager.penumbra
+    assert rt.outcome == "ERROR" and rt.scene == scene.name
+    return rt.message
+
+
+def test_messages_name_what_to_fix(empty_scene):
+    assert "nothing to bake" in _fail(empty_scene)
+    cornell_box.build()
+    empty_scene.penumbra.epsilon = 0.004
+    lamp = bpy.data.objects["Lamp"]
+    lamp.hide_set(True)
+    point = bpy.data.objects.new("Bulb", bpy.data.lights.new("Bulb", "POINT"))
+    empty_scene.collection.objects.link(point)
+    before = helpers.blend_state()
+    msg = _fail(empty_scene)
+    assert "nothing emits light" in msg and "Bulb" in msg and "POINT light is not supported" in msg
+    helpers.assert_same_state(before, helpers.blend_state())
+    assert empty_scene.penumbra.last_report == ""
+    lamp.hide_set(False)
+    # A face-less mesh and a material that cannot be read are reported by name, and the bake goes on.
+    edges = bpy.data.meshes.new("Wire")
+    edges.from_pydata([(0, 0, 0.5), (0.1, 0, 0.5)], [(0, 1)], [])
+    empty_scene.collection.objects.link(bpy.data.objects.new("Wire", edges))
+    mat = bpy.data.materials["Green"]
+    noise = mat.node_tree.nodes.new("ShaderNodeTexNoise")
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_DIFFUSE")
+    mat.node_tree.links.new(noise.outputs["Color"], bsdf.inputs["Color"])
+    empty_scene.penumbra.resolution = 16
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    r = _last(empty_scene)
+    assert {"name": "Bulb", "reason": "POINT light is not supported (only AREA lights are)"} in r["skipped"]
+    assert any(x["name"] == "Wire" and "no faces" in x["reason"] for x in r["skipped"])
+    assert any("RightWall" in w and "Green" in w for w in r["warnings"])
+    rt = bpy.context.window_manager.penumbra
+    assert rt.outcome == "FINISHED" and json.loads(rt.report)["skipped"] == r["skipped"]
+
+
+def test_preview_toggle_and_clear_are_undoable_operators(empty_scene):
+    from penumbra import operators
+    _box(empty_scene)
+    assert not bpy.ops.penumbra.preview.poll()            # nothing baked yet
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    assert {"UNDO", "REGISTER"} <= set(bpy.types.PENUMBRA_OT_preview.bl_options)
+    assert {"UNDO", "REGISTER"} <= set(bpy.types.PENUMBRA_OT_clear.bl_options)
+    assert {"UNDO", "REGISTER"} <= set(bpy.types.PENUMBRA_OT_bake.bl_options)
+    bpy.ops.penumbra.preview()                              # no `on` given: toggles
+    assert operators.scene_preview_on(empty_scene)
+    bpy.ops.penumbra.preview()
+    assert not operators.scene_preview_on(empty_scene)
+    bpy.ops.penumbra.clear()
+    assert empty_scene.penumbra.last_report == "" and not operators.scene_has_bake(empty_scene)
+
+
+def test_worker_thread_cancels_and_leaves_the_scene_unchanged(empty_scene, penumbra):
+    """The modal operator's worker, driven the way modal() drives it (the modal itself needs a window)."""
+    from penumbra.operators import Worker
+    cornell_box.build()
+    before = helpers.blend_state()
+    job = penumbra.begin(empty_scene, epsilon=2e-5, min_size=0.004, threads=1)
+    w = Worker(job).start()
+    deadline = time.perf_counter() + 30
+    while w.percent <= 5 and not w.done and time.perf_counter() < deadline:
+        time.sleep(0.05)
+    assert not w.done and w.percent > 5, "the solve should still be refining"
+    w.request_cancel()
+    w.thread.join(30)
+    assert w.done and isinstance(w.error, penumbra.Cancelled)
+    helpers.assert_same_state(before, helpers.blend_state())
+
+
+def test_worker_result_is_written_only_by_finish(empty_scene, penumbra):
+    from penumbra.operators import Worker
+    cornell_box.build()
+    before = helpers.blend_state()
+    job = penumbra.begin(empty_scene, epsilon=0.004, resolution=16)
+    w = Worker(job).start()
+    w.thread.join(60)
+    assert w.done and w.error is None and w.percent >= 50
+    helpers.assert_same_state(before, helpers.blend_state())     # solved, not yet written
+    report = job.finish()
+    assert "Penumbra_Floor" in bpy.data.images and report["objects_baked"]
