@@ -98,10 +98,13 @@ std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput&
         }
         double area2 = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1]) - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
         if (!std::isfinite(area2) || std::fabs(area2) < 1e-12) continue;  // no UV area: nothing to own
-        int x0 = std::max(0, int(std::floor(std::min({uv[0][0], uv[1][0], uv[2][0]}) - 1)));
-        int x1 = std::min(W - 1, int(std::ceil(std::max({uv[0][0], uv[1][0], uv[2][0]}) + 1)));
-        int y0 = std::max(0, int(std::floor(std::min({uv[0][1], uv[1][1], uv[2][1]}) - 1)));
-        int y1 = std::min(H - 1, int(std::ceil(std::max({uv[0][1], uv[1][1], uv[2][1]}) + 1)));
+        // Clamped while still double: a UV far outside [0, 1] must not overflow the int conversion.
+        auto lo = [](double v, int n) { return int(std::clamp(std::floor(v - 1), 0.0, double(n))); };
+        auto hi = [](double v, int n) { return int(std::clamp(std::ceil(v + 1), -1.0, double(n - 1))); };
+        int x0 = lo(std::min({uv[0][0], uv[1][0], uv[2][0]}), W);
+        int x1 = hi(std::max({uv[0][0], uv[1][0], uv[2][0]}), W);
+        int y0 = lo(std::min({uv[0][1], uv[1][1], uv[2][1]}), H);
+        int y1 = hi(std::max({uv[0][1], uv[1][1], uv[2][1]}), H);
         for (int y = y0; y <= y1; ++y)
             for (int x = x0; x <= x1; ++x) {
                 double px = x + 0.5, py = y + 0.5, u, v, w;
