@@ -7,6 +7,21 @@ BUILD=${PENUMBRA_BUILD_DIR:-build}
 export PENUMBRA_ADDON_DIR="$PWD/$BUILD/addon"
 echo "== C++ unit tests (ctest)"
 (cd "$BUILD" && ctest --output-on-failure -j"$(nproc)")
+echo "== C++ unit tests under AddressSanitizer + UndefinedBehaviorSanitizer (build-asan)"
+# Only penumbra_tests: the Python module under ASan would need the runtime preloaded into python.
+# native/lsan.supp: FFTW's plan cache and Mesa's internals live until exit by design.
+ASAN_BUILD=${PENUMBRA_ASAN_BUILD_DIR:-build-asan}
+ROOT=$PWD
+if [ ! -f "$ASAN_BUILD/CMakeCache.txt" ]; then
+  cmake -S . -B "$ASAN_BUILD" -DPENUMBRA_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DPython_EXECUTABLE=/usr/bin/python3.11
+fi
+cmake --build "$ASAN_BUILD" --target penumbra_tests -j"$(nproc)"
+(cd "$ASAN_BUILD" &&
+  ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
+  LSAN_OPTIONS=suppressions="$ROOT/native/lsan.supp" \
+  UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
+  ctest --output-on-failure -j"$(nproc)")
 echo "== native module tests (/usr/bin/python3 -m pytest)"
 /usr/bin/python3 -m pytest -q -p no:cacheprovider native/python
 echo "== add-on tests inside blender -b"

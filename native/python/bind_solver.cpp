@@ -5,6 +5,8 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
+#include <limits>
+#include <type_traits>
 
 #include "bake/exr.h"
 #include "bindings.h"
@@ -47,7 +49,10 @@ public:
         py::gil_scoped_acquire gil;
         try {
             py::object r = cb_(stage, fraction);
-            return r.is_none() || r.cast<bool>();
+            if (r.is_none()) return true;
+            int truth = PyObject_IsTrue(r.ptr());
+            if (truth < 0) throw py::error_already_set();
+            return truth != 0;
         } catch (py::error_already_set& e) {
             // An exception in the user's callback stops the bake; it is reported, not swallowed.
             error_ = e.what();
@@ -60,18 +65,46 @@ private:
     py::object cb_;
 };
 
+// A wrong type (a string, a float for an integer, an int past 64 bits) is a ValueError naming the key,
+// never pybind11's generic cast error. numpy scalars are accepted like Python numbers.
+template <class T>
+T settingValue(const std::string& key, py::handle v) {
+    if constexpr (std::is_integral_v<T>) {
+        long long x;
+        try {
+            x = v.cast<long long>();
+        } catch (const py::cast_error&) {
+            throw py::value_error("setting '" + key + "' must be an integer within range");
+        }
+        if (x < 0 || (sizeof(T) < sizeof(long long) && x > (long long)std::numeric_limits<T>::max()))
+            throw py::value_error("setting '" + key + "' is out of range");
+        return T(x);
+    } else {
+        try {
+            return v.cast<double>();
+        } catch (const py::cast_error&) {
+            throw py::value_error("setting '" + key + "' must be a number");
+        }
+    }
+}
+
 Settings parseSettings(const py::dict& d) {
     Settings s;
     for (auto item : d) {
+        if (!py::isinstance<py::str>(item.first)) throw py::value_error("setting keys must be strings");
         std::string k = py::str(item.first);
         py::handle v = item.second;
-        if (k == "epsilon") s.epsilon = v.cast<double>();
-        else if (k == "min_size") s.minSize = v.cast<double>();
-        else if (k == "visibility_rays") s.visibilityRays = v.cast<int>();
-        else if (k == "max_iterations") s.maxIterations = v.cast<int>();
-        else if (k == "tolerance") s.tolerance = v.cast<double>();
-        else if (k == "refine_passes") s.refinePasses = v.cast<int>();
-        else if (k == "threads") s.threads = v.cast<int>();
+        if (k == "epsilon") s.epsilon = settingValue<double>(k, v);
+        else if (k == "min_size") s.minSize = settingValue<double>(k, v);
+        else if (k == "visibility_rays") s.visibilityRays = settingValue<int>(k, v);
+        else if (k == "max_iterations") s.maxIterations = settingValue<int>(k, v);
+        else if (k == "tolerance") s.tolerance = settingValue<double>(k, v);
+        else if (k == "refine_passes") s.refinePasses = settingValue<int>(k, v);
+        else if (k == "threads") s.threads = settingValue<int>(k, v);
+        else if (k == "max_elements") s.maxElements = settingValue<size_t>(k, v);
+        else if (k == "max_links") s.maxLinks = settingValue<size_t>(k, v);
+        else if (k == "max_face_pairs") s.maxFacePairs = settingValue<double>(k, v);
+        else if (k == "max_texels") s.maxTexels = settingValue<size_t>(k, v);
         else throw py::value_error("unknown setting '" + k + "'");
     }
     return s;
@@ -97,15 +130,21 @@ py::dict reportDict(const Report& r) {
 }  // namespace
 
 static py::exception<Cancelled>* cancelledType = nullptr;
+static py::exception<BudgetExceeded>* budgetType = nullptr;
 
 void bindSolver(py::module_& m) {
     static py::exception<Cancelled> cancelled(m, "Cancelled");
     cancelledType = &cancelled;
+    // A ValueError, so callers that handle bad input handle an over-budget scene the same way.
+    static py::exception<BudgetExceeded> budget(m, "BudgetExceeded", PyExc_ValueError);
+    budgetType = &budget;
     py::register_exception_translator([](std::exception_ptr p) {
         try {
             if (p) std::rethrow_exception(p);
         } catch (const Cancelled& e) {
             PyErr_SetString(cancelledType->ptr(), e.what());
+        } catch (const BudgetExceeded& e) {
+            PyErr_SetString(budgetType->ptr(), e.what());
         } catch (const InputError& e) {
             PyErr_SetString(PyExc_ValueError, e.what());
         }
@@ -150,6 +189,8 @@ void bindSolver(py::module_& m) {
                  in.triangles = size_t(p.shape(0));
                  for (size_t i = 0; i < in.triangles * 9; ++i)
                      if (!std::isfinite(in.positions[i])) throw py::value_error("positions contain NaN or infinite values");
+                 for (size_t i = 0; i < in.triangles * 6; ++i)
+                     if (!std::isfinite(in.uvs[i])) throw py::value_error("uvs contain NaN or infinite values");
                  in.width = width;
                  in.height = height;
                  in.margin = margin;

@@ -33,7 +33,11 @@ void validateSettings(const Settings& s) {
     if (s.maxIterations < 1) bad("max_iterations must be at least 1");
     if (!(s.tolerance > 0) || !(s.tolerance < 1)) bad("tolerance must be in (0, 1)");
     if (s.refinePasses < 1 || s.refinePasses > 20) bad("refine_passes must be in [1, 20]");
-    if (s.threads < 0) bad("threads must be >= 0");
+    if (s.threads < 0 || s.threads > 1024) bad("threads must be in [0, 1024]");
+    if (s.maxElements < 1 || s.maxElements > (size_t(1) << 30)) bad("max_elements must be in [1, 2^30]");
+    if (s.maxLinks < 1) bad("max_links must be at least 1");
+    if (!(s.maxFacePairs >= 1)) bad("max_face_pairs must be at least 1");
+    if (s.maxTexels < 1) bad("max_texels must be at least 1");
 }
 
 void sortLinks(std::vector<Link>& links) {
@@ -57,13 +61,14 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     auto sol = std::unique_ptr<Solution>(new Solution());
     Report& rep = sol->report_;
     sol->threads_ = resolveThreads(settings.threads);
+    sol->maxTexels_ = settings.maxTexels;
     Stopwatch clock;
 
     sol->scene_ = std::make_unique<Scene>(buildScene(in));
     const Scene& scene = *sol->scene_;
     rep.polygons = scene.polygons.size();
     rep.warnings = scene.warnings;
-    sol->hierarchy_ = std::make_unique<Hierarchy>(scene);
+    sol->hierarchy_ = std::make_unique<Hierarchy>(scene, settings.maxElements);
     Hierarchy& h = *sol->hierarchy_;
     rep.seconds["scene"] = clock.lap();
     checkProgress(progress, "visibility", 0.0);
@@ -126,6 +131,11 @@ std::vector<float> Solution::radiance(const float* points, const float* normals,
 }
 
 std::vector<float> Solution::bakeLightmap(const LightmapInput& in) const {
+    if (in.width > 0 && in.height > 0 && size_t(in.width) * size_t(in.height) > maxTexels_)
+        throw BudgetExceeded("memory guard: a " + std::to_string(in.width) + " x " + std::to_string(in.height) +
+                             " lightmap is more than max_texels = " + std::to_string(maxTexels_) +
+                             " texels (about 60 bytes each while baking); lower the resolution or raise "
+                             "max_texels");
     return penumbra::bakeLightmap(field_, in, scene_->offset, threads_);
 }
 

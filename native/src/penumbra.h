@@ -30,6 +30,7 @@ public:
     const Report& report() const { return report_; }
     // Outgoing reflected radiance (B - B_e)/pi at world-space points, n x 3 each.
     std::vector<float> radiance(const float* points, const float* normals, size_t n) const;
+    // Throws BudgetExceeded for images over Settings::maxTexels.
     std::vector<float> bakeLightmap(const LightmapInput& in) const;
     const Scene& scene() const { return *scene_; }
     const Hierarchy& hierarchy() const { return *hierarchy_; }
@@ -43,9 +44,11 @@ private:
     RadianceField field_;
     Report report_;
     int threads_ = 1;
+    size_t maxTexels_ = 0;
 };
 
-// Throws InputError for bad input (message names the object), Cancelled when progress says stop.
+// Throws InputError for bad input (message names the object), BudgetExceeded (an InputError) when
+// the scene would exceed a budget in Settings, Cancelled when progress says stop.
 std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, Progress* progress);
 
 }  // namespace penumbra

@@ -1,6 +1,9 @@
 #include "hierarchy/element.h"
 
 #include <stdexcept>
+#include <string>
+
+#include "util/progress.h"
 
 namespace penumbra {
 namespace {
@@ -36,9 +39,13 @@ void finishElement(Element& e) {
     e.center = p.centroid();
 }
 
-Hierarchy::Hierarchy(const Scene& scene) : scene_(scene) {
+Hierarchy::Hierarchy(const Scene& scene, size_t maxElements) : scene_(scene), maxElements_(maxElements) {
     blocks_.reserve(kMaxBlocks);
     numRoots_ = scene.polygons.size();
+    if (numRoots_ > maxElements_)
+        throw BudgetExceeded("memory guard: the scene has " + std::to_string(numRoots_) +
+                             " faces (after splitting quads and two-sided emitters), more than max_elements = " +
+                             std::to_string(maxElements_));
     int first = allocate(int(numRoots_));
     for (size_t i = 0; i < numRoots_; ++i) initRoot((*this)[first + i], scene.polygons[i], int(i));
 }
@@ -55,6 +62,10 @@ void Hierarchy::initRoot(Element& e, const ScenePolygon& p, int polygon) {
 int Hierarchy::allocate(int count) {
     size_t first = size_.load(std::memory_order_relaxed);
     size_t end = first + size_t(count);
+    if (end > maxElements_)
+        throw BudgetExceeded("memory guard: the element hierarchy would grow past max_elements = " +
+                             std::to_string(maxElements_) + " (" + std::to_string(numRoots_) +
+                             " faces); raise epsilon or min_size, or raise max_elements");
     while (blocks_.size() << kBlockBits < end) {
         if (blocks_.size() >= kMaxBlocks) throw std::runtime_error("element arena exhausted");
         blocks_.emplace_back(new Element[size_t(1) << kBlockBits]);

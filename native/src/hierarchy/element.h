@@ -36,7 +36,8 @@ struct Element {
 // Element arena with stable addresses: refiner threads subdivide while others read.
 class Hierarchy {
 public:
-    explicit Hierarchy(const Scene& scene);
+    // Throws BudgetExceeded when the roots, or later a subdivision, would exceed maxElements.
+    explicit Hierarchy(const Scene& scene, size_t maxElements = size_t(-1));
     const Scene& scene() const { return scene_; }
     size_t size() const { return size_.load(std::memory_order_acquire); }
     size_t numRoots() const { return numRoots_; }
@@ -62,6 +63,7 @@ private:
     std::vector<std::unique_ptr<Element[]>> blocks_;  // reserved up front, so never reallocated
     std::atomic<size_t> size_{0};
     size_t numRoots_ = 0;
+    size_t maxElements_;
     std::mutex mutex_;
 };
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "geometry/form_factor.h"
 #include "util/parallel.h"
@@ -47,6 +48,14 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)
     minArea_ = minEdge * minEdge;
     lift_ = 1e-6 * sc.diagonal;
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
+}
+
+void Refiner::keep(const Link& l, std::vector<Link>& out) {
+    if (linkCount_.fetch_add(1, std::memory_order_relaxed) >= settings_.maxLinks)
+        throw BudgetExceeded("memory guard: the scene needs more than max_links = " +
+                             std::to_string(settings_.maxLinks) +
+                             " links; raise epsilon or min_size, or raise max_links");
+    out.push_back(l);
 }
 
 bool Refiner::canSplit(int e) const { return h_[e].area > minArea_ && h_[e].depth < 250; }
@@ -138,7 +147,7 @@ void Refiner::refine(int ri, int si, std::vector<Link>& out) {
     // Rays are spent only once the unoccluded transfer is accurate enough to be linked.
     estimateVisibility(ri, si, l);
     if (linkError(l) <= threshold_ || !l.partial() || (!canR && !canS)) {
-        if (l.F > 0) out.push_back(l);
+        if (l.F > 0) keep(l, out);
         return;
     }
     // Partial visibility: either side's split narrows down where the shadow boundary runs.
@@ -160,14 +169,30 @@ std::vector<Link> Refiner::linkAll(Progress* progress) {
         if (p.receives && maxComponent(p.rho) > 0) receivers.push_back(int(i));
         if (maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0) sources.push_back(int(i));
     }
+    // Without clusters every receiving face meets every source face at the root level: this product
+    // is a floor on the work, so a scene far past it is refused up front rather than left running.
+    double pairs = double(receivers.size()) * double(sources.size());
+    if (pairs > settings_.maxFacePairs)
+        throw BudgetExceeded("work guard: " + std::to_string(receivers.size()) + " receiving x " +
+                             std::to_string(sources.size()) + " sending faces make " +
+                             std::to_string(pairs) + " face pairs, more than max_face_pairs = " +
+                             std::to_string(settings_.maxFacePairs) +
+                             " (the solver has no clustering yet); bake fewer or simpler objects, "
+                             "or raise max_face_pairs");
+    linkCount_ = 0;
     std::vector<std::vector<Link>> perReceiver(receivers.size());
     std::atomic<size_t> done{0};
     int threads = resolveThreads(settings_.threads);
     std::atomic<bool> cancel{false};
     parallelFor(receivers.size(), threads, 4, [&](size_t b, size_t e, int t) {
         for (size_t i = b; i < e && !cancel; ++i) {
-            for (int s : sources)
-                if (s != receivers[i]) refine(receivers[i], s, perReceiver[i]);
+            try {
+                for (int s : sources)
+                    if (s != receivers[i]) refine(receivers[i], s, perReceiver[i]);
+            } catch (...) {
+                cancel = true;  // a budget was hit: the other threads stop at their next face
+                throw;
+            }
             size_t d = ++done;
             // Only thread 0 talks to the caller: the callback may need the caller's lock (the GIL).
             if (t == 0 && progress && !progress->update("refine", double(d) / receivers.size()))
@@ -184,20 +209,26 @@ std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* pr
                                     bool& changed) {
     std::vector<std::vector<Link>> out(links.size() / 256 + 1);
     std::atomic<bool> anyChange{false}, cancel{false};
+    linkCount_ = 0;
     std::atomic<size_t> done{0};
     size_t chunks = out.size();
     parallelFor(chunks, resolveThreads(settings_.threads), 1, [&](size_t b, size_t e, int t) {
         for (size_t c = b; c < e && !cancel; ++c) {
             size_t lo = c * 256, hi = std::min(links.size(), lo + 256);
-            for (size_t i = lo; i < hi; ++i) {
-                const Link& l = links[i];
-                bool splittable = canSplit(l.receiver) || (l.partial() && canSplit(l.source));
-                if (linkError(l) > threshold_ && splittable) {
-                    anyChange = true;
-                    refine(l.receiver, l.source, out[c]);
-                } else {
-                    out[c].push_back(l);
+            try {
+                for (size_t i = lo; i < hi; ++i) {
+                    const Link& l = links[i];
+                    bool splittable = canSplit(l.receiver) || (l.partial() && canSplit(l.source));
+                    if (linkError(l) > threshold_ && splittable) {
+                        anyChange = true;
+                        refine(l.receiver, l.source, out[c]);
+                    } else {
+                        keep(l, out[c]);
+                    }
                 }
+            } catch (...) {
+                cancel = true;
+                throw;
             }
             size_t d = ++done;
             if (t == 0 && progress && !progress->update("refine", double(d) / chunks)) cancel = true;

@@ -39,6 +39,7 @@ private:
     bool estimateUnoccluded(int r, int s, Link& l);
     void estimateVisibility(int r, int s, Link& l);
     bool canSplit(int e) const;
+    void keep(const Link& l, std::vector<Link>& out);  // appends, within settings_.maxLinks
 
     Hierarchy& h_;
     const RayCaster& rays_;
@@ -48,6 +49,7 @@ private:
     double lift_;  // ray end points are lifted off their surfaces by this much
     int strata_;   // visibility rays = strata_^2
     RefineStats stats_;
+    std::atomic<size_t> linkCount_{0};  // links in the list being built
 };
 
 }  // namespace penumbra

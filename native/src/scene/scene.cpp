@@ -22,6 +22,10 @@ std::string objectName(const SceneInput& in, size_t poly) {
     throw InputError(s.str());
 }
 
+// Past this distance from the origin float32 input is coarser than 8 m, and a single far vertex makes
+// every other face numerically zero-area at the scene's scale: it is a broken modifier or transform.
+constexpr double kMaxCoordinate = 1e8;
+
 Vec3 vertex(const SceneInput& in, int32_t i) {
     const float* p = in.vertices + size_t(i) * 3;
     return {p[0], p[1], p[2]};
@@ -69,6 +73,9 @@ Scene buildScene(const SceneInput& in) {
     for (size_t p = 0; p < in.numPolygons; ++p) {
         const int32_t* idx = in.polygons + p * 4;
         int nv = idx[3] < 0 ? 3 : 4;
+        if (in.objectIndex[p] < 0 || size_t(in.objectIndex[p]) >= in.objectNames.size())
+            throw InputError("face " + std::to_string(p) + ": object_index " + std::to_string(in.objectIndex[p]) +
+                             " is out of range [0, " + std::to_string(in.objectNames.size()) + ")");
         if (idx[3] < -1) fail(in, p, "negative vertex index " + std::to_string(idx[3]));
         for (int k = 0; k < nv; ++k) {
             if (idx[k] < 0 || size_t(idx[k]) >= in.numVertices)
@@ -76,6 +83,12 @@ Scene buildScene(const SceneInput& in) {
                                 std::to_string(in.numVertices) + ")");
             Vec3 v = vertex(in, idx[k]);
             if (!isFinite(v)) fail(in, p, "vertex " + std::to_string(idx[k]) + " is NaN or infinite");
+            if (maxComponent(vmax(v, -v)) > kMaxCoordinate) {
+                std::ostringstream s;
+                s << "vertex " << idx[k] << " at (" << v.x << ", " << v.y << ", " << v.z
+                  << ") is more than " << kMaxCoordinate << " m from the origin (a broken modifier or transform?)";
+                fail(in, p, s.str());
+            }
             raw.extend(v);
         }
         for (int c = 0; c < 3; ++c) {
@@ -151,7 +164,11 @@ Scene buildScene(const SceneInput& in) {
         for (int k = 0; k < sp.geom.n; ++k) scene.bounds.extend(sp.geom.v[k]);
         anyReceiver |= sp.receives;
     }
-    if (!anyReceiver) throw InputError("nothing to bake: the scene has no mesh faces with area");
+    if (!anyReceiver)
+        throw InputError("nothing to bake: the scene has no mesh faces with area" +
+                         (scene.degenerateSkipped
+                              ? " (" + std::to_string(scene.degenerateSkipped) + " zero-area face(s) skipped)"
+                              : std::string()));
     if (!(scene.maxEmission > 0))
         throw InputError("nothing emits light: add an area light or an emissive material "
                          "(point, spot and sun lights are not supported yet)");

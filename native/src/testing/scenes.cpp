@@ -24,6 +24,20 @@ int TestScene::triangle(Vec3 a, Vec3 b, Vec3 c, Rgb rho, Rgb emit, uint8_t flag,
     return i;
 }
 
+void TestScene::box(Vec3 lo, Vec3 hi, Rgb rho, Rgb emit, bool inward, int object) {
+    Vec3 c[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {lo.x, hi.y, lo.z},
+                 {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z}};
+    const int faces[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}};
+    for (auto& f : faces) {
+        if (inward) quad(c[f[3]], c[f[2]], c[f[1]], c[f[0]], rho, emit, 0, object);
+        else quad(c[f[0]], c[f[1]], c[f[2]], c[f[3]], rho, emit, 0, object);
+    }
+}
+
+void TestScene::transform(double scale, Vec3 offset) {
+    for (size_t i = 0; i < vertices.size(); ++i) vertices[i] = float(double(vertices[i]) * scale + offset[int(i % 3)]);
+}
+
 SceneInput TestScene::input() const {
     SceneInput in;
     in.vertices = vertices.data();
@@ -59,6 +73,16 @@ TestScene furnaceBox(double s, int n, Rgb rho, Rgb emit) {
                     else t.quad(p0, p3, p2, p1, rho, emit);
                 }
         }
+    return t;
+}
+
+TestScene litRoom() {
+    TestScene t;
+    t.names = {"Room", "Block", "Lamp"};
+    t.box({-1, -1, 0}, {1, 1, 2}, {0.6, 0.6, 0.6}, {}, true, 0);
+    t.box({-0.5, -0.25, 0}, {0.25, 0.5, 0.75}, {0.7, 0.7, 0.7}, {}, false, 1);
+    double z = 1.96875, s = 0.25;  // exact in float32 even 1e5 from the origin
+    t.quad({-s, -s, z}, {-s, s, z}, {s, s, z}, {s, -s, z}, {}, {30, 30, 30}, kLightOnly, 2);
     return t;
 }
 

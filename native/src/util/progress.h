@@ -23,6 +23,12 @@ struct InputError : std::invalid_argument {
     using std::invalid_argument::invalid_argument;
 };
 
+// The scene would need more memory or work than a budget in Settings allows. Thrown before the
+// allocation that would exceed it; the message names the budget and how to stay within it.
+struct BudgetExceeded : InputError {
+    using InputError::InputError;
+};
+
 inline void checkProgress(Progress* p, const char* stage, double fraction) {
     if (p && !p->update(stage, fraction)) throw Cancelled();
 }
