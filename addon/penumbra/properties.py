@@ -104,14 +104,14 @@ class PenumbraSettings(bpy.types.PropertyGroup):
     visibility_rays: IntProperty(
         name="Shadow Rays",
         description="Rays that test how much of a light or surface another surface sees, where it is partly "
-                    "hidden. More rays give smoother penumbras", default=16, min=1, max=1024)
+                    "hidden. More rays give smoother penumbras", default=16, min=1, max=256)
     max_iterations: IntProperty(
         name="Max Iterations",
         description="Upper limit on the light-bounce iterations. The report warns when the limit stopped the "
-                    "solve before it converged", default=1000, min=1, max=100000)
+                    "solve before it converged", default=5000, min=1, max=100000)
     tolerance: FloatProperty(
         name="Convergence",
-        description="The bounces stop when the light changes by less than this fraction between iterations",
+        description="The bounces stop when the estimated remaining error of the light falls below this fraction",
         default=1e-4, min=1e-9, max=0.5, precision=6, step=0.001)
     refine_passes: IntProperty(
         name="Refine Passes",

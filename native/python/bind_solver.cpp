@@ -119,6 +119,7 @@ py::dict reportDict(const Report& r) {
     d["leaves"] = r.leaves;
     d["links"] = r.links;
     d["rays"] = r.rays;
+    d["shafts_clear"] = r.shaftsClear;
     d["iterations"] = r.iterations;
     d["refine_passes"] = r.refinePasses;
     d["residual"] = r.residual;

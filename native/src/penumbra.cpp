@@ -110,6 +110,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     rep.leaves = h.countLeaves();
     rep.links = links.size();
     rep.rays = refiner.stats().rays;
+    rep.shaftsClear = refiner.stats().shaftsClear;
     checkProgress(progress, "solve", 1.0);
     return sol;
 }

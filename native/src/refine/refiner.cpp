@@ -46,7 +46,7 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)
     threshold_ = s.epsilon * sc.maxEmission;
     double minEdge = s.minSize * sc.diagonal;
     minArea_ = minEdge * minEdge;
-    lift_ = 1e-6 * sc.diagonal;
+    lift_ = 1e-5 * sc.diagonal;
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
 }
 
@@ -113,6 +113,17 @@ void Refiner::estimateVisibility(int ri, int si, Link& l) {
     const Scene& sc = h_.scene();
     const Vec3 nr = sc.polygons[r.polygon].normal * lift_;
     const Vec3 ns = sc.polygons[s.polygon].normal * lift_;
+    // Ray end points are lifted off the surfaces, so the boxes grow by the lift before culling.
+    Bounds rb, sb;
+    Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
+    for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
+    for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
+    if (rays_.shaftIsClear(rb, sb, r.polygon, s.polygon)) {
+        ++stats_.shaftsClear;
+        l.V = 1;
+        l.F = l.Fmean;
+        return;
+    }
     int m = strata_, n = m * m;
     Rng rng(r.key ^ (s.key * 0x9E3779B97F4A7C15ull));
     Vec3 from[256], to[256];
@@ -183,23 +194,22 @@ std::vector<Link> Refiner::linkAll(Progress* progress) {
     std::vector<std::vector<Link>> perReceiver(receivers.size());
     std::atomic<size_t> done{0};
     int threads = resolveThreads(settings_.threads);
-    std::atomic<bool> cancel{false};
+    ProgressPoll poll(progress, "refine");
     parallelFor(receivers.size(), threads, 4, [&](size_t b, size_t e, int t) {
-        for (size_t i = b; i < e && !cancel; ++i) {
+        for (size_t i = b; i < e && !poll.cancelled(); ++i) {
             try {
-                for (int s : sources)
+                for (int s : sources) {
+                    if (poll.stop(t, double(done) / receivers.size())) break;
                     if (s != receivers[i]) refine(receivers[i], s, perReceiver[i]);
+                }
             } catch (...) {
-                cancel = true;  // a budget was hit: the other threads stop at their next face
+                poll.cancel();  // a budget was hit: the other threads stop at their next face
                 throw;
             }
-            size_t d = ++done;
-            // Only thread 0 talks to the caller: the callback may need the caller's lock (the GIL).
-            if (t == 0 && progress && !progress->update("refine", double(d) / receivers.size()))
-                cancel = true;
+            ++done;
         }
     });
-    if (cancel) throw Cancelled();
+    if (poll.cancelled()) throw Cancelled();
     std::vector<Link> links;
     for (auto& v : perReceiver) links.insert(links.end(), v.begin(), v.end());
     return links;
@@ -208,15 +218,17 @@ std::vector<Link> Refiner::linkAll(Progress* progress) {
 std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* progress,
                                     bool& changed) {
     std::vector<std::vector<Link>> out(links.size() / 256 + 1);
-    std::atomic<bool> anyChange{false}, cancel{false};
+    std::atomic<bool> anyChange{false};
+    ProgressPoll poll(progress, "refine");
     linkCount_ = 0;
     std::atomic<size_t> done{0};
     size_t chunks = out.size();
     parallelFor(chunks, resolveThreads(settings_.threads), 1, [&](size_t b, size_t e, int t) {
-        for (size_t c = b; c < e && !cancel; ++c) {
+        for (size_t c = b; c < e && !poll.cancelled(); ++c) {
             size_t lo = c * 256, hi = std::min(links.size(), lo + 256);
             try {
                 for (size_t i = lo; i < hi; ++i) {
+                    if (poll.stop(t, double(done) / chunks)) break;
                     const Link& l = links[i];
                     bool splittable = canSplit(l.receiver) || (l.partial() && canSplit(l.source));
                     if (linkError(l) > threshold_ && splittable) {
@@ -227,14 +239,13 @@ std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* pr
                     }
                 }
             } catch (...) {
-                cancel = true;
+                poll.cancel();
                 throw;
             }
-            size_t d = ++done;
-            if (t == 0 && progress && !progress->update("refine", double(d) / chunks)) cancel = true;
+            ++done;
         }
     });
-    if (cancel) throw Cancelled();
+    if (poll.cancelled()) throw Cancelled();
     changed = anyChange;
     std::vector<Link> result;
     for (auto& v : out) result.insert(result.end(), v.begin(), v.end());

@@ -16,6 +16,7 @@ namespace penumbra {
 struct RefineStats {
     std::atomic<size_t> rays{0};
     std::atomic<size_t> estimates{0};
+    std::atomic<size_t> shaftsClear{0};  // links found fully visible by shaft culling, no rays cast
 };
 
 class Refiner {

@@ -9,7 +9,7 @@ struct Settings {
     double epsilon = 0.0002;      // max radiosity error of a link, relative to the brightest emitter
     double minSize = 0.01;       // smallest element edge, relative to the scene's bounding-box diagonal
     int visibilityRays = 16;     // rays per link estimate (rounded to a square number of strata)
-    int maxIterations = 1000;    // gather + push/pull sweeps per refinement pass
+    int maxIterations = 5000;    // sweeps per refinement pass; albedo 0.99 needs ~1000 for 1e-4
     double tolerance = 1e-4;     // stop when the estimated remaining relative error falls below this
     int refinePasses = 3;        // refine -> solve rounds (later passes refine with indirect light)
     int threads = 0;             // 0: all cores
