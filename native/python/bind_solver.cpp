@@ -101,6 +101,10 @@ Settings parseSettings(const py::dict& d) {
         else if (k == "tolerance") s.tolerance = settingValue<double>(k, v);
         else if (k == "refine_passes") s.refinePasses = settingValue<int>(k, v);
         else if (k == "threads") s.threads = settingValue<int>(k, v);
+        else if (k == "clustering") {
+            if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'clustering' must be True or False");
+            s.clustering = v.cast<bool>();
+        }
         else if (k == "max_elements") s.maxElements = settingValue<size_t>(k, v);
         else if (k == "max_links") s.maxLinks = settingValue<size_t>(k, v);
         else if (k == "max_face_pairs") s.maxFacePairs = settingValue<double>(k, v);
@@ -120,6 +124,8 @@ py::dict reportDict(const Report& r) {
     d["links"] = r.links;
     d["rays"] = r.rays;
     d["shafts_clear"] = r.shaftsClear;
+    d["clusters"] = r.clusters;
+    d["cluster_links"] = r.clusterLinks;
     d["iterations"] = r.iterations;
     d["refine_passes"] = r.refinePasses;
     d["residual"] = r.residual;

@@ -263,11 +263,17 @@ def test_large_scene_solves():
     assert np.all(np.isfinite(rad)) and rad.min() > 0
 
 
-def test_200k_faces_stop_at_the_face_pair_budget():
+def test_200k_faces_solve_with_clusters_and_stop_at_the_face_pair_budget_without():
     args = grid_arrays(448)
     assert len(args[1]) > 200000
+    # With clusters the lamp meets the grid through the cluster tree, never face by face.
+    sol = _native.solve(*args)
+    assert sol.report["clusters"] > 1000
+    pts, nrm = floor_points(-1.96875, 1.96875, 0.0, n=16)
+    rad = sol.radiance(pts, nrm)
+    assert np.all(np.isfinite(rad)) and rad.min() > 0
     with pytest.raises(_native.BudgetExceeded, match="max_face_pairs"):
-        _native.solve(*args)
+        _native.solve(*args, settings={"clustering": False})
 
 
 def test_element_budget_stops_refinement_with_a_clear_error():

@@ -48,8 +48,8 @@ void sortLinks(std::vector<Link>& links) {
 
 void remapLinks(std::vector<Link>& links, const std::vector<int>& remap) {
     for (Link& l : links) {
-        l.receiver = remap[l.receiver];
-        l.source = remap[l.source];
+        if (!isClusterNode(l.receiver)) l.receiver = remap[l.receiver];
+        if (!isClusterNode(l.source)) l.source = remap[l.source];
     }
     sortLinks(links);
 }
@@ -68,7 +68,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     const Scene& scene = *sol->scene_;
     rep.polygons = scene.polygons.size();
     rep.warnings = scene.warnings;
-    sol->hierarchy_ = std::make_unique<Hierarchy>(scene, settings.maxElements);
+    sol->hierarchy_ = std::make_unique<Hierarchy>(scene, settings.maxElements, settings.clustering);
     Hierarchy& h = *sol->hierarchy_;
     rep.seconds["scene"] = clock.lap();
     checkProgress(progress, "visibility", 0.0);
@@ -111,6 +111,10 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     rep.links = links.size();
     rep.rays = refiner.stats().rays;
     rep.shaftsClear = refiner.stats().shaftsClear;
+    rep.clusters = h.clusters().size();
+    rep.clusterLinks = size_t(std::count_if(links.begin(), links.end(), [](const Link& l) {
+        return isClusterNode(l.receiver) || isClusterNode(l.source);
+    }));
     checkProgress(progress, "solve", 1.0);
     return sol;
 }

@@ -19,6 +19,7 @@ namespace penumbra {
 struct Report {
     std::map<std::string, double> seconds;  // per stage
     size_t polygons = 0, elements = 0, leaves = 0, links = 0, rays = 0, shaftsClear = 0;
+    size_t clusters = 0, clusterLinks = 0;  // cluster nodes; links with a cluster at either end
     int iterations = 0, refinePasses = 0;
     double residual = 0;
     bool converged = false;

@@ -39,7 +39,9 @@ void finishElement(Element& e) {
     e.center = p.centroid();
 }
 
-Hierarchy::Hierarchy(const Scene& scene, size_t maxElements) : scene_(scene), maxElements_(maxElements) {
+Hierarchy::Hierarchy(const Scene& scene, size_t maxElements, bool clustering)
+    : scene_(scene), maxElements_(maxElements) {
+    if (clustering) clusters_ = ClusterTree(scene);
     blocks_.reserve(kMaxBlocks);
     numRoots_ = scene.polygons.size();
     if (numRoots_ > maxElements_)

@@ -1,5 +1,5 @@
-// Quadtree elements on the scene's polygons. Clusters (issue 3) will sit above the polygon roots as
-// another kind of node; links, gather and push/pull only ever see node indices.
+// Quadtree elements on the scene's polygons, and the cluster tree above the polygon roots. Links,
+// gather and push/pull only ever see node indices (cluster.h: negative for clusters).
 #pragma once
 #include <array>
 #include <atomic>
@@ -8,6 +8,7 @@
 #include <mutex>
 #include <vector>
 
+#include "hierarchy/cluster.h"
 #include "scene/scene.h"
 
 namespace penumbra {
@@ -37,8 +38,10 @@ struct Element {
 class Hierarchy {
 public:
     // Throws BudgetExceeded when the roots, or later a subdivision, would exceed maxElements.
-    explicit Hierarchy(const Scene& scene, size_t maxElements = size_t(-1));
+    // With `clustering`, a cluster tree is built over the polygons (else clusters() is empty).
+    explicit Hierarchy(const Scene& scene, size_t maxElements = size_t(-1), bool clustering = false);
     const Scene& scene() const { return scene_; }
+    const ClusterTree& clusters() const { return clusters_; }
     size_t size() const { return size_.load(std::memory_order_acquire); }
     size_t numRoots() const { return numRoots_; }
     Element& operator[](size_t i) { return blocks_[i >> kBlockBits][i & kBlockMask]; }
@@ -60,6 +63,7 @@ private:
     void initRoot(Element& e, const ScenePolygon& p, int polygon);
 
     const Scene& scene_;
+    ClusterTree clusters_;
     std::vector<std::unique_ptr<Element[]>> blocks_;  // reserved up front, so never reallocated
     std::atomic<size_t> size_{0};
     size_t numRoots_ = 0;

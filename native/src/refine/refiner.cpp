@@ -5,6 +5,7 @@
 #include <string>
 
 #include "geometry/form_factor.h"
+#include "hierarchy/node.h"
 #include "util/parallel.h"
 
 namespace penumbra {
@@ -58,9 +59,30 @@ void Refiner::keep(const Link& l, std::vector<Link>& out) {
     out.push_back(l);
 }
 
-bool Refiner::canSplit(int e) const { return h_[e].area > minArea_ && h_[e].depth < 250; }
+bool Refiner::canSplit(int e) const {
+    return isClusterNode(e) || (h_[e].area > minArea_ && h_[e].depth < 250);
+}
+
+bool Refiner::receives(int node) const {
+    if (isClusterNode(node)) return h_.clusters()[clusterIndex(node)].rhoMax > 0;
+    const ScenePolygon& p = h_.scene().polygons[h_[node].polygon];
+    return p.receives && maxComponent(p.rho) > 0;
+}
+
+bool Refiner::sends(int node) const {
+    if (isClusterNode(node)) return h_.clusters()[clusterIndex(node)].sends;
+    const ScenePolygon& p = h_.scene().polygons[h_[node].polygon];
+    return maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0;
+}
+
+double Refiner::receiverRho(int node) const {
+    if (isClusterNode(node)) return h_.clusters()[clusterIndex(node)].rhoMax;
+    return maxComponent(h_.scene().polygons[h_[node].polygon].rho);
+}
 
 double Refiner::linkError(const Link& l) const {
+    if (isClusterNode(l.receiver) || isClusterNode(l.source))
+        return receiverRho(l.receiver) * fluxBound(h_, l.source, nodeBox(h_, l.receiver));
     const Element& r = h_[l.receiver];
     const Element& s = h_[l.source];
     const ScenePolygon& rp = h_.scene().polygons[r.polygon];
@@ -144,6 +166,146 @@ void Refiner::estimateVisibility(int ri, int si, Link& l) {
 }
 
 void Refiner::refine(int ri, int si, std::vector<Link>& out) {
+    if (isClusterNode(ri) || isClusterNode(si))
+        refineCluster(ri, si, out, nullptr);
+    else
+        refineElements(ri, si, out);
+}
+
+std::vector<int> Refiner::children(int node, bool receiver) {
+    std::vector<int> kids;
+    if (isClusterNode(node)) {
+        const ClusterTree& ct = h_.clusters();
+        const Cluster& c = ct[clusterIndex(node)];
+        for (int k = 0; k < c.numChildren; ++k) kids.push_back(clusterNode(c.firstChild + k));
+        for (int k = c.begin; k < c.ownEnd; ++k) kids.push_back(ct.polygons()[k]);
+    } else {
+        int fc = h_.subdivide(node);
+        for (int k = 0; k < h_[node].numChildren; ++k) kids.push_back(fc + k);
+    }
+    kids.erase(std::remove_if(kids.begin(), kids.end(),
+                              [&](int n) { return receiver ? !receives(n) : !sends(n); }),
+               kids.end());
+    return kids;
+}
+
+void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
+                            std::vector<std::pair<int, int>>* defer) {
+    auto recurse = [&](int r, int s) {
+        if (defer)
+            defer->push_back({r, s});
+        else
+            refine(r, s, out);
+    };
+    Bounds rb = nodeBox(h_, ri), sb = nodeBox(h_, si);
+    // Touching boxes leave no distance to bound the transfer with: they are always split.
+    bool openReceiver = false;
+    if (ri != si && !overlaps(rb, sb) &&
+        receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
+        Link l;
+        if (!estimateCluster(ri, si, rb, sb, l)) return;
+        // A cluster shares what it receives among its faces by their cosines alone, blind to
+        // shadows inside it: a partly hidden cluster would light the inside of a sealed box. It is
+        // opened instead, down to faces whose own links see their own visibility.
+        if (!isClusterNode(ri) || l.V >= 1) {
+            keep(l, out);
+            return;
+        }
+        openReceiver = true;
+    }
+    if (ri == si) {
+        // Light within a cluster: every pair of its parts, but never a polygon with itself.
+        std::vector<int> rk = children(ri, true), sk = children(si, false);
+        for (int a : rk)
+            for (int b : sk)
+                if (a != b || isClusterNode(a)) recurse(a, b);
+        return;
+    }
+    if (openReceiver) {
+        for (int a : children(ri, true)) recurse(a, si);
+        return;
+    }
+    bool canR = canSplit(ri), canS = canSplit(si);
+    // An element source is never split here: its parts would share the same error among more links
+    // (see refineElements), so a cluster receiver is opened down to its faces instead, and those
+    // meet the source through the exact form factor.
+    double sizeR = length(rb.diagonal()), sizeS = length(sb.diagonal());
+    if (!isClusterNode(si)) canS = false;
+    if (canR && (!canS || sizeR >= sizeS)) {
+        for (int a : children(ri, true)) recurse(a, si);
+    } else {
+        for (int b : children(si, false)) recurse(ri, b);
+    }
+}
+
+bool Refiner::sampleNode(int node, const Vec3& toward, bool receiver, uint64_t seed, int n,
+                           Vec3* pts) const {
+    const Scene& sc = h_.scene();
+    Rng rng(seed);
+    if (!isClusterNode(node)) {
+        const Element& e = h_[node];
+        int m = std::max(1, int(std::lround(std::sqrt(double(n)))));
+        const Vec3 lift = sc.polygons[e.polygon].normal * lift_;
+        for (int i = 0; i < n; ++i) {
+            int a = i % (m * m);
+            pts[i] = e.pointAt((a % m + rng.next()) / m, (a / m + rng.next()) / m) + lift;
+        }
+        return true;
+    }
+    const ClusterTree& ct = h_.clusters();
+    const Cluster& c = ct[clusterIndex(node)];
+    std::vector<double> cdf;
+    std::vector<int> polys;
+    double total = 0;
+    for (int k = c.begin; k < c.end; ++k) {
+        int p = ct.polygons()[k];
+        const ScenePolygon& sp = sc.polygons[p];
+        if (receiver ? !(sp.receives && maxComponent(sp.rho) > 0) : !sends(p)) continue;
+        double w = sp.area * std::max(0.0, dot(sp.normal, normalize(toward - h_[p].center)));
+        if (w <= 0) continue;
+        total += w;
+        cdf.push_back(total);
+        polys.push_back(p);
+    }
+    if (total <= 0) return false;
+    for (int i = 0; i < n; ++i) {
+        double u = (i + rng.next()) / n * total;
+        size_t j = std::min(size_t(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin()), cdf.size() - 1);
+        const Element& e = h_[polys[j]];
+        pts[i] = e.pointAt(rng.next(), rng.next()) + sc.polygons[polys[j]].normal * lift_;
+    }
+    return true;
+}
+
+bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb, Link& l) {
+    l.receiver = ri;
+    l.source = si;
+    l.F = l.Fmean = l.Fspread = 0;  // cluster transfers are evaluated from the faces at gather time
+    auto key = [&](int node) {
+        return isClusterNode(node) ? h_.clusters()[clusterIndex(node)].key : h_[node].key;
+    };
+    int n = std::min(strata_ * strata_, 256);
+    Vec3 from[256], to[256];
+    uint64_t seed = key(ri) ^ (key(si) * 0x9E3779B97F4A7C15ull);
+    // No face of one end turned toward the other: nothing flows, no link.
+    if (!sampleNode(ri, nodeCenter(h_, si), true, seed, n, from)) return false;
+    if (!sampleNode(si, nodeCenter(h_, ri), false, seed * 31 + 7, n, to)) return false;
+    ++stats_.estimates;
+    Bounds rpad = rb, spad = sb;
+    Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
+    rpad.extend(rb.lo - pad); rpad.extend(rb.hi + pad);
+    spad.extend(sb.lo - pad); spad.extend(sb.hi + pad);
+    if (rays_.shaftIsClear(rpad, spad, -1, -1)) {
+        ++stats_.shaftsClear;
+        l.V = 1;
+    } else {
+        l.V = float(rays_.unoccludedFraction(from, to, n));
+        stats_.rays += size_t(n);
+    }
+    return l.V > 0;
+}
+
+void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
     Link l;
     if (!estimateUnoccluded(ri, si, l)) return;
     bool canR = canSplit(ri), canS = canSplit(si);
@@ -172,6 +334,50 @@ void Refiner::refine(int ri, int si, std::vector<Link>& out) {
 }
 
 std::vector<Link> Refiner::linkAll(Progress* progress) {
+    return h_.clusters().empty() ? linkFacePairs(progress) : linkFromRoot(progress);
+}
+
+std::vector<Link> Refiner::linkFromRoot(Progress* progress) {
+    linkCount_ = 0;
+    int threads = resolveThreads(settings_.threads);
+    int root = clusterNode(0);
+    std::vector<Link> links;
+    std::vector<std::pair<int, int>> frontier{{root, root}}, ready;
+    // The top of the refinement runs on one thread until there are enough independent pairs to
+    // share out; the split decisions do not depend on the thread count, so neither do the links.
+    const size_t wanted = 256;
+    while (!frontier.empty() && frontier.size() + ready.size() < wanted) {
+        std::vector<std::pair<int, int>> next;
+        for (auto [r, s] : frontier) {
+            if (isClusterNode(r) || isClusterNode(s))
+                refineCluster(r, s, links, &next);
+            else
+                ready.push_back({r, s});
+        }
+        frontier.swap(next);
+    }
+    ready.insert(ready.end(), frontier.begin(), frontier.end());
+    std::vector<std::vector<Link>> perPair(ready.size());
+    std::atomic<size_t> done{0};
+    ProgressPoll poll(progress, "refine");
+    parallelFor(ready.size(), threads, 1, [&](size_t b, size_t e, int t) {
+        for (size_t i = b; i < e && !poll.cancelled(); ++i) {
+            if (poll.stop(t, double(done) / ready.size())) break;
+            try {
+                refine(ready[i].first, ready[i].second, perPair[i]);
+            } catch (...) {
+                poll.cancel();
+                throw;
+            }
+            ++done;
+        }
+    });
+    if (poll.cancelled()) throw Cancelled();
+    for (auto& v : perPair) links.insert(links.end(), v.begin(), v.end());
+    return links;
+}
+
+std::vector<Link> Refiner::linkFacePairs(Progress* progress) {
     const Scene& sc = h_.scene();
     size_t roots = h_.numRoots();
     std::vector<int> receivers, sources;
@@ -188,7 +394,7 @@ std::vector<Link> Refiner::linkAll(Progress* progress) {
                              std::to_string(sources.size()) + " sending faces make " +
                              std::to_string(pairs) + " face pairs, more than max_face_pairs = " +
                              std::to_string(settings_.maxFacePairs) +
-                             " (the solver has no clustering yet); bake fewer or simpler objects, "
+                             " with clustering off; turn clustering on, bake fewer or simpler objects, "
                              "or raise max_face_pairs");
     linkCount_ = 0;
     std::vector<std::vector<Link>> perReceiver(receivers.size());

@@ -1,8 +1,11 @@
 // Error-driven (BF) refinement after Hanrahan, Salzman and Aupperle: a transfer is linked at the
 // coarsest level where the radiosity error it can cause on the receiver is below epsilon; otherwise
-// the larger of the two elements is split.
+// the larger of the two nodes is split. With clusters (Smits-Arvo-Greenberg) it starts from one
+// root <-> root link; between clusters the error is a bound on the whole transfer (fluxBound), and
+// between two elements it is the spread of the exact point-to-polygon form factor.
 #pragma once
 #include <atomic>
+#include <utility>
 #include <vector>
 
 #include "hierarchy/element.h"
@@ -23,7 +26,8 @@ class Refiner {
 public:
     Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s);
 
-    // Links every receiving root polygon with every root that can send it light, refined.
+    // Refines from the root cluster link, or without clusters links every receiving polygon with
+    // every polygon that can send it light.
     std::vector<Link> linkAll(Progress* progress);
     // Re-judges links with the sources' current radiosities; splits those now too coarse.
     // `changed` tells whether any link was replaced.
@@ -35,7 +39,22 @@ public:
     const RefineStats& stats() const { return stats_; }
 
 private:
+    std::vector<Link> linkFacePairs(Progress* progress);
+    std::vector<Link> linkFromRoot(Progress* progress);
     void refine(int r, int s, std::vector<Link>& out);
+    void refineElements(int r, int s, std::vector<Link>& out);
+    // A pair with a cluster at one end: links it, drops it, or (with `defer`) hands back the pairs
+    // it splits into instead of refining them.
+    void refineCluster(int r, int s, std::vector<Link>& out, std::vector<std::pair<int, int>>* defer);
+    // Visibility of a cluster link from rays between faces of both ends; false when nothing flows.
+    bool estimateCluster(int r, int s, const Bounds& rb, const Bounds& sb, Link& l);
+    // Points on the faces of a node that look toward `toward`, spread by projected area; false when
+    // none does.
+    bool sampleNode(int node, const Vec3& toward, bool receiver, uint64_t seed, int n, Vec3* pts) const;
+    std::vector<int> children(int node, bool receiver);
+    bool receives(int node) const;
+    bool sends(int node) const;
+    double receiverRho(int node) const;
     // Unoccluded estimate. False when no light can pass (back-facing or coplanar).
     bool estimateUnoccluded(int r, int s, Link& l);
     void estimateVisibility(int r, int s, Link& l);

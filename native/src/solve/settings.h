@@ -13,11 +13,12 @@ struct Settings {
     double tolerance = 1e-4;     // stop when the estimated remaining relative error falls below this
     int refinePasses = 3;        // refine -> solve rounds (later passes refine with indirect light)
     int threads = 0;             // 0: all cores
+    bool clustering = true;      // refine from one root <-> root cluster link instead of all face pairs
     // Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,
     // instead of being killed by the system (or, for face pairs, running for hours).
     size_t maxElements = 2000000;    // quadtree elements, ~400 bytes each at the peak (canonicalize)
     size_t maxLinks = 30000000;      // links, ~72 bytes each at the peak (per-thread lists, merge, sort)
-    double maxFacePairs = 1e9;       // receiver x source face pairs linkAll must visit (no clustering yet)
+    double maxFacePairs = 1e9;       // receiver x source face pairs linkAll visits without clustering
     size_t maxTexels = size_t(8192) * 8192;  // one bake_lightmap call, ~60 bytes each
 };
 

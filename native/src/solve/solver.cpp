@@ -3,25 +3,75 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hierarchy/node.h"
 #include "util/parallel.h"
 
 namespace penumbra {
+
+void Solver::prepareClusters(const std::vector<Link>& links) {
+    const ClusterTree& ct = h_.clusters();
+    clusterLinks_.assign(ct.size(), {0, 0});
+    linkFlux_.assign(links.size(), Rgb{});
+    linkDir_.assign(links.size(), Vec3{});
+    for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
+        int r = links[groupStart_[g]].receiver;
+        if (!isClusterNode(r)) continue;
+        clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
+        for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
+            linkDir_[i] = normalize(nodeCenter(h_, links[i].source) - ct[clusterIndex(r)].center);
+    }
+}
 
 void Solver::gather(const std::vector<Link>& links) {
     if (groupStart_.empty()) {
         for (size_t i = 0; i < links.size(); ++i)
             if (i == 0 || links[i].receiver != links[i - 1].receiver) groupStart_.push_back(i);
         groupStart_.push_back(links.size());
+        prepareClusters(links);
     }
     for (size_t i = 0; i < h_.size(); ++i) h_[i].irradiance = Rgb{};
     size_t groups = groupStart_.size() - 1;
+    const Scene& sc = h_.scene();
     // Each receiver's links form one run, handled by one thread: the sum order is fixed.
-    parallelFor(groups, resolveThreads(settings_.threads), 512, [&](size_t b, size_t e, int) {
+    parallelFor(groups, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
         for (size_t g = b; g < e; ++g) {
+            int r = links[groupStart_[g]].receiver;
+            if (isClusterNode(r)) {
+                const Vec3& c = h_.clusters()[clusterIndex(r)].center;
+                for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
+                    linkFlux_[i] = fluxAt(h_, links[i].source, c, nullptr) * double(links[i].V);
+                continue;
+            }
+            Element& re = h_[r];
+            const Vec3& n = sc.polygons[re.polygon].normal;
             Rgb sum;
-            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
-                sum += h_[links[i].source].B * double(links[i].F);
-            h_[links[groupStart_[g]].receiver].irradiance = sum;
+            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
+                const Link& l = links[i];
+                if (isClusterNode(l.source))
+                    sum += fluxAt(h_, l.source, re.center, &n) * double(l.V);
+                else
+                    sum += h_[l.source].B * double(l.F);
+            }
+            re.irradiance = sum;
+        }
+    });
+}
+
+void Solver::distributeClusters(std::vector<Rgb>& down) const {
+    const ClusterTree& ct = h_.clusters();
+    const Scene& sc = h_.scene();
+    parallelFor(down.size(), resolveThreads(settings_.threads), 256, [&](size_t b, size_t e, int) {
+        for (size_t p = b; p < e; ++p) {
+            Rgb sum;
+            const Vec3& n = sc.polygons[p].normal;
+            for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent) {
+                auto [lo, hi] = clusterLinks_[size_t(c)];
+                for (size_t i = lo; i < hi; ++i) {
+                    double cosine = dot(n, linkDir_[i]);
+                    if (cosine > 0) sum += linkFlux_[i] * cosine;
+                }
+            }
+            down[p] = sum;
         }
     });
 }
@@ -49,9 +99,11 @@ Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected)
 double Solver::sweep(const std::vector<Link>& links) {
     gather(links);
     size_t roots = h_.numRoots();
+    std::vector<Rgb> down(roots);
+    if (!h_.clusters().empty()) distributeClusters(down);
     std::vector<double> change(roots, 0.0), refl(roots, 0.0);
     parallelFor(roots, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
-        for (size_t r = b; r < e; ++r) pushPull(int(r), Rgb{}, change[r], refl[r]);
+        for (size_t r = b; r < e; ++r) pushPull(int(r), down[r], change[r], refl[r]);
     });
     double c = 0, rf = 0;
     for (size_t r = 0; r < roots; ++r) { c += change[r]; rf += refl[r]; }

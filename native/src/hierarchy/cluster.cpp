@@ -1,0 +1,143 @@
+#include "hierarchy/cluster.h"
+
+#include <algorithm>
+#include <map>
+
+namespace penumbra {
+namespace {
+
+constexpr size_t kLeafPolygons = 8;  // a cluster this small links its polygons directly
+// A polygon whose box is at least this fraction of its cluster's box hangs there: splitting the
+// cluster would not separate it from anything.
+constexpr double kLargeFraction = 0.5;
+
+Bounds polygonBox(const ScenePolygon& p) {
+    Bounds b;
+    for (int k = 0; k < p.geom.n; ++k) b.extend(p.geom.v[k]);
+    return b;
+}
+
+int longestAxis(const Bounds& b) {
+    Vec3 d = b.diagonal();
+    return d.x >= d.y && d.x >= d.z ? 0 : (d.y >= d.z ? 1 : 2);
+}
+
+uint64_t clusterKey(int c) {
+    uint64_t x = uint64_t(c) * 0x9E3779B97F4A7C15ull + 0xC1A5732Bull;
+    x ^= x >> 31;
+    x *= 0xBF58476D1CE4E5B9ull;
+    return x ^ (x >> 29);
+}
+
+}  // namespace
+
+ClusterTree::ClusterTree(const Scene& scene) {
+    owner_.assign(scene.polygons.size(), -1);
+    std::vector<int> items;
+    for (size_t i = 0; i < scene.polygons.size(); ++i) {
+        const ScenePolygon& p = scene.polygons[i];
+        bool receives = p.receives && maxComponent(p.rho) > 0;
+        bool sends = maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0;
+        if (receives || sends) items.push_back(int(i));
+    }
+    if (items.empty()) return;
+    clusters_.emplace_back();
+    build(scene, items, -1, 0, 0);
+}
+
+// Fills slot c: own polygons first, then the children's, so that every subtree's polygons are one
+// contiguous range. Slots are addressed by index: the vector grows during the recursion.
+void ClusterTree::build(const Scene& scene, std::vector<int>& items, int parent, int c, int depth) {
+    clusters_[c].parent = parent;
+    clusters_[c].begin = int(polygons_.size());
+
+    Bounds all;
+    for (int p : items) all.extend(polygonBox(scene.polygons[p]));
+    double diag = length(all.diagonal());
+    std::vector<int> own, rest;
+    bool oneObject = std::all_of(items.begin(), items.end(), [&](int p) {
+        return scene.polygons[p].object == scene.polygons[items[0]].object;
+    });
+    if ((items.size() <= kLeafPolygons && oneObject) || items.size() <= 2 || depth > 60) {
+        own = items;
+    } else {
+        for (int p : items)
+            (length(polygonBox(scene.polygons[p]).diagonal()) >= kLargeFraction * diag ? own : rest).push_back(p);
+        if (rest.size() <= 2) {
+            own.insert(own.end(), rest.begin(), rest.end());
+            rest.clear();
+        }
+    }
+    for (int p : own) {
+        owner_[p] = c;
+        polygons_.push_back(p);
+    }
+    clusters_[c].ownEnd = int(polygons_.size());
+
+    if (!rest.empty()) {
+        // Objects are kept whole while the cluster holds several: a chair stays one cluster, which is
+        // what a convolution link wants as a blocker. One object is split in space.
+        std::map<int, std::pair<Bounds, int>> objects;  // object -> (box of centres, polygon count)
+        for (int p : rest) {
+            auto& o = objects[scene.polygons[p].object];
+            o.first.extend(polygonBox(scene.polygons[p]).center());
+            ++o.second;
+        }
+        std::vector<int> left, right;
+        if (objects.size() > 1) {
+            Bounds centres;
+            for (auto& [obj, o] : objects) centres.extend(o.first.center());
+            int axis = longestAxis(centres);
+            std::vector<std::pair<double, int>> order;
+            for (auto& [obj, o] : objects) order.push_back({o.first.center()[axis], obj});
+            std::sort(order.begin(), order.end());
+            size_t half = rest.size() / 2, count = 0;
+            std::map<int, bool> goesLeft;
+            for (size_t k = 0; k < order.size(); ++k) {
+                // The first object always goes left and the last right, so both sides are non-empty.
+                bool l = k == 0 || (k + 1 < order.size() && count < half);
+                goesLeft[order[k].second] = l;
+                if (l) count += size_t(objects[order[k].second].second);
+            }
+            for (int p : rest) (goesLeft[scene.polygons[p].object] ? left : right).push_back(p);
+        } else {
+            Bounds centres;
+            for (int p : rest) centres.extend(polygonBox(scene.polygons[p]).center());
+            int axis = longestAxis(centres);
+            std::vector<std::pair<double, int>> order;
+            for (int p : rest) order.push_back({polygonBox(scene.polygons[p]).center()[axis], p});
+            std::sort(order.begin(), order.end());
+            size_t half = order.size() / 2;
+            for (size_t k = 0; k < order.size(); ++k) (k < half ? left : right).push_back(order[k].second);
+        }
+        int first = int(clusters_.size());
+        clusters_[c].firstChild = first;
+        clusters_[c].numChildren = 2;
+        clusters_.emplace_back();
+        clusters_.emplace_back();
+        build(scene, left, c, first, depth + 1);
+        build(scene, right, c, first + 1, depth + 1);
+    }
+    clusters_[c].end = int(polygons_.size());
+    finish(scene, c);
+}
+
+void ClusterTree::finish(const Scene& scene, int c) {
+    Cluster& cl = clusters_[c];
+    cl.box = Bounds{};
+    cl.area = 0;
+    cl.rhoMax = 0;
+    cl.sends = false;
+    for (int i = cl.begin; i < cl.end; ++i) {
+        const ScenePolygon& p = scene.polygons[polygons_[i]];
+        cl.box.extend(polygonBox(p));
+        cl.area += p.area;
+        if (p.receives) cl.rhoMax = std::max(cl.rhoMax, maxComponent(p.rho));
+        cl.sends |= maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0;
+    }
+    cl.center = cl.box.center();
+    cl.radius = 0.5 * length(cl.box.diagonal());
+    cl.key = clusterKey(c);
+}
+
+}  // namespace penumbra

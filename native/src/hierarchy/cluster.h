@@ -1,0 +1,54 @@
+// Clusters above the input polygons (Smits-Arvo-Greenberg 1994, Sillion 1995): a tree of boxes built
+// from object and spatial grouping. A polygon hangs from the lowest cluster that it does not dwarf, so
+// a wall sits near the root and a chair's faces sit in the chair's clusters. Refinement starts from a
+// single root <-> root link, which replaces the O(n^2) linking of every polygon pair.
+#pragma once
+#include <cstdint>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace penumbra {
+
+struct Cluster {
+    Bounds box;
+    Vec3 center;
+    double radius = 0;        // half the box diagonal
+    int parent = -1;
+    int firstChild = -1, numChildren = 0;  // child clusters, contiguous in ClusterTree::clusters
+    int begin = 0, end = 0;   // every polygon of the subtree: ClusterTree::polygons[begin, end)
+    int ownEnd = 0;           // [begin, ownEnd): the polygons hanging directly from this cluster
+    double area = 0;          // of all polygons below
+    double rhoMax = 0;        // largest reflectance of a receiving polygon below (0: nothing receives)
+    bool sends = false;       // something below emits or reflects
+    uint64_t key = 0;         // seeds the ray samples of links that end here
+};
+
+class ClusterTree {
+public:
+    ClusterTree() = default;
+    // Over the polygons that take part in the light transport (receivers and senders).
+    explicit ClusterTree(const Scene& scene);
+    bool empty() const { return clusters_.empty(); }
+    const Cluster& operator[](int c) const { return clusters_[size_t(c)]; }
+    size_t size() const { return clusters_.size(); }
+    const std::vector<int>& polygons() const { return polygons_; }
+    // The cluster a polygon hangs from, or -1 for polygons left out of the transport.
+    int owner(int polygon) const { return owner_[size_t(polygon)]; }
+
+private:
+    void build(const Scene& scene, std::vector<int>& items, int parent, int c, int depth);
+    void finish(const Scene& scene, int c);
+
+    std::vector<Cluster> clusters_;
+    std::vector<int> polygons_;
+    std::vector<int> owner_;
+};
+
+// Links and the solver name nodes by one int: elements are >= 0 (a polygon's root element has the
+// polygon's index), clusters are negative.
+inline bool isClusterNode(int node) { return node < 0; }
+inline int clusterNode(int c) { return -2 - c; }
+inline int clusterIndex(int node) { return -2 - node; }
+
+}  // namespace penumbra

@@ -1,0 +1,117 @@
+#include "hierarchy/cluster.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+
+#include "hierarchy/node.h"
+#include "testing/scenes.h"
+
+namespace penumbra {
+namespace {
+
+// A room of 6 x 8 floor tiles (one object) with 12 small boxes (an object each) and a lamp.
+testing::TestScene clutteredRoom() {
+    testing::TestScene t;
+    t.names = {"Room", "Lamp"};
+    t.box({-3, -4, 0}, {3, 4, 3}, {0.6, 0.6, 0.6}, {}, true, 0);
+    for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 8; ++j)
+            t.quad({-3.0 + i, -4.0 + j, 0.01}, {-2.0 + i, -4.0 + j, 0.01}, {-2.0 + i, -3.0 + j, 0.01},
+                   {-3.0 + i, -3.0 + j, 0.01}, {0.5, 0.5, 0.5}, {}, 0, 0);
+    for (int k = 0; k < 12; ++k) {
+        t.names.push_back("Box" + std::to_string(k));
+        double x = -2.5 + (k % 4) * 1.5, y = -3 + (k / 4) * 2.5;
+        t.box({x, y, 0.01}, {x + 0.4, y + 0.4, 0.5}, {0.7, 0.7, 0.7}, {}, false, int(t.names.size()) - 1);
+    }
+    t.quad({-0.5, -0.5, 2.9}, {-0.5, 0.5, 2.9}, {0.5, 0.5, 2.9}, {0.5, -0.5, 2.9}, {}, {20, 20, 20},
+           kLightOnly, 1);
+    return t;
+}
+
+TEST(ClusterTree, EveryPolygonHangsOnceAndSubtreesAreContiguous) {
+    auto t = clutteredRoom();
+    Scene sc = buildScene(t.input());
+    ClusterTree ct(sc);
+    ASSERT_GT(ct.size(), 10u);
+    std::multiset<int> seen(ct.polygons().begin(), ct.polygons().end());
+    EXPECT_EQ(seen.size(), sc.polygons.size());
+    for (size_t p = 0; p < sc.polygons.size(); ++p) {
+        EXPECT_EQ(seen.count(int(p)), 1u) << p;
+        int c = ct.owner(int(p));
+        ASSERT_GE(c, 0);
+        // Owned means listed among the cluster's own polygons.
+        bool own = false;
+        for (int k = ct[c].begin; k < ct[c].ownEnd; ++k) own |= ct.polygons()[k] == int(p);
+        EXPECT_TRUE(own) << p;
+    }
+    EXPECT_EQ(ct[0].begin, 0);
+    EXPECT_EQ(ct[0].end, int(sc.polygons.size()));
+    for (size_t c = 0; c < ct.size(); ++c) {
+        const Cluster& cl = ct[int(c)];
+        // The children's ranges tile [ownEnd, end) in order, and every box holds its polygons.
+        int next = cl.ownEnd;
+        for (int k = 0; k < cl.numChildren; ++k) {
+            const Cluster& ch = ct[cl.firstChild + k];
+            EXPECT_EQ(ch.parent, int(c));
+            EXPECT_EQ(ch.begin, next);
+            next = ch.end;
+        }
+        EXPECT_EQ(next, cl.end);
+        for (int k = cl.begin; k < cl.end; ++k)
+            for (int v = 0; v < sc.polygons[ct.polygons()[k]].geom.n; ++v) {
+                const Vec3& p = sc.polygons[ct.polygons()[k]].geom.v[v];
+                EXPECT_TRUE(p.x >= cl.box.lo.x && p.x <= cl.box.hi.x && p.y >= cl.box.lo.y &&
+                            p.y <= cl.box.hi.y && p.z >= cl.box.lo.z && p.z <= cl.box.hi.z);
+            }
+    }
+}
+
+TEST(ClusterTree, ObjectsStayWholeAndLargeFacesHangHigh) {
+    auto t = clutteredRoom();
+    Scene sc = buildScene(t.input());
+    ClusterTree ct(sc);
+    // Each small box ends up in one cluster whose subtree holds exactly its six faces.
+    for (int obj = 2; obj < int(t.names.size()); ++obj) {
+        bool found = false;
+        for (size_t c = 0; c < ct.size() && !found; ++c) {
+            const Cluster& cl = ct[int(c)];
+            std::set<int> objs;
+            for (int k = cl.begin; k < cl.end; ++k) objs.insert(sc.polygons[ct.polygons()[k]].object);
+            found = objs.size() == 1 && *objs.begin() == obj && cl.end - cl.begin == 6;
+        }
+        EXPECT_TRUE(found) << t.names[obj];
+    }
+    // The room's walls are as large as the scene: they hang from the root.
+    for (int p = 0; p < 6; ++p) EXPECT_EQ(ct.owner(p), 0) << p;
+}
+
+TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
+    auto t = clutteredRoom();
+    Scene sc = buildScene(t.input());
+    Hierarchy h(sc, size_t(-1), true);
+    for (size_t i = 0; i < h.numRoots(); ++i) h[i].B = Rgb{1, 2, 3};
+    const ClusterTree& ct = h.clusters();
+    // A box's cluster seen from a point on the far wall: the alpha transfer is the sum over faces.
+    int box = -1;
+    for (size_t c = 0; c < ct.size(); ++c)
+        if (ct[int(c)].end - ct[int(c)].begin == 6 && sc.polygons[ct.polygons()[ct[int(c)].begin]].object == 2)
+            box = int(c);
+    ASSERT_GE(box, 0);
+    Vec3 y{2.9, 3.9, 2.5}, n = normalize(Vec3{-1, -1, -0.5});
+    Rgb sum;
+    for (int k = ct[box].begin; k < ct[box].end; ++k) sum += fluxAt(h, ct.polygons()[k], y, &n);
+    Rgb all = fluxAt(h, clusterNode(box), y, &n);
+    EXPECT_NEAR(all.z, sum.z, 1e-12);
+    EXPECT_GT(all.z, 0);
+    // Only the faces turned toward y count: the box's bottom and far sides add nothing.
+    Bounds at;
+    at.extend(y - Vec3{0.05, 0.05, 0.05});
+    at.extend(y + Vec3{0.05, 0.05, 0.05});
+    EXPECT_LE(all.z, fluxBound(h, clusterNode(box), at));
+    // Touching boxes have no bound.
+    EXPECT_EQ(fluxBound(h, clusterNode(box), ct[box].box), HUGE_VAL);
+}
+
+}  // namespace
+}  // namespace penumbra
