@@ -79,6 +79,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     Refiner refiner(h, rays, settings);
     Solver solver(h, settings);
     std::vector<Link>& links = sol->links_;
+    h.updateClusterFlux();
     links = refiner.linkAll(progress);
     remapLinks(links, h.canonicalize());
     rep.seconds["refine"] = clock.lap();
@@ -88,6 +89,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     int totalIterations = res.iterations;
     for (int pass = 1; pass < settings.refinePasses; ++pass) {
         bool changed = false;
+        h.updateClusterFlux();
         links = refiner.rerefine(links, progress, changed);
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();

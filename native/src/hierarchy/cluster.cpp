@@ -1,6 +1,8 @@
 #include "hierarchy/cluster.h"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <map>
 
 namespace penumbra {
@@ -43,6 +45,26 @@ ClusterTree::ClusterTree(const Scene& scene) {
     if (items.empty()) return;
     clusters_.emplace_back();
     build(scene, items, -1, 0, 0);
+    // Normals equal to 1e-6 share a class (the faces of one box, a tiled floor).
+    memberStart_.resize(clusters_.size());
+    for (size_t c = 0; c < clusters_.size(); ++c) {
+        Cluster& cl = clusters_[c];
+        memberStart_[c] = memberClass_.size();
+        cl.classBegin = int(classNormal_.size());
+        std::map<std::array<long long, 3>, int> classes;
+        for (int k = cl.begin; k < cl.end; ++k) {
+            const Vec3& n = scene.polygons[size_t(polygons_[size_t(k)])].normal;
+            std::array<long long, 3> key{std::llround(n.x * 1e6), std::llround(n.y * 1e6), std::llround(n.z * 1e6)};
+            auto it = classes.find(key);
+            if (it == classes.end()) {
+                it = classes.emplace(key, int(classNormal_.size())).first;
+                classNormal_.push_back(n);
+            }
+            memberClass_.push_back(it->second);
+        }
+        cl.classEnd = int(classNormal_.size());
+    }
+    classFlux_.assign(classNormal_.size(), Rgb{});
 }
 
 // Fills slot c: own polygons first, then the children's, so that every subtree's polygons are one

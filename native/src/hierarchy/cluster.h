@@ -22,6 +22,10 @@ struct Cluster {
     double rhoMax = 0;        // largest reflectance of a receiving polygon below (0: nothing receives)
     bool sends = false;       // something below emits or reflects
     uint64_t key = 0;         // seeds the ray samples of links that end here
+    // The distinct face normals below (a room's furniture has a handful): the cluster's emission
+    // toward any direction is a sum over these, not over its faces. [classBegin, classEnd) indexes
+    // ClusterTree::classNormal and ::classFlux.
+    int classBegin = 0, classEnd = 0;
 };
 
 class ClusterTree {
@@ -36,6 +40,24 @@ public:
     // The cluster a polygon hangs from, or -1 for polygons left out of the transport.
     int owner(int polygon) const { return owner_[size_t(polygon)]; }
 
+    const std::vector<Vec3>& classNormal() const { return classNormal_; }
+    // Per normal class: sum of B * area of its faces, refreshed from the polygons' radiosities by
+    // updateFlux before every gather and refinement pass.
+    const std::vector<Rgb>& classFlux() const { return classFlux_; }
+    // polygonRadiosity(p): the current mean radiosity of polygon p.
+    template <class F>
+    void updateFlux(const Scene& scene, F&& polygonRadiosity) {
+        for (auto& f : classFlux_) f = Rgb{};
+        for (size_t c = 0; c < clusters_.size(); ++c) {
+            const Cluster& cl = clusters_[c];
+            const int* cls = memberClass_.data() + memberStart_[c];
+            for (int k = cl.begin; k < cl.end; ++k) {
+                int p = polygons_[size_t(k)];
+                classFlux_[size_t(cls[k - cl.begin])] += polygonRadiosity(p) * scene.polygons[size_t(p)].area;
+            }
+        }
+    }
+
 private:
     void build(const Scene& scene, std::vector<int>& items, int parent, int c, int depth);
     void finish(const Scene& scene, int c);
@@ -43,6 +65,10 @@ private:
     std::vector<Cluster> clusters_;
     std::vector<int> polygons_;
     std::vector<int> owner_;
+    std::vector<Vec3> classNormal_;
+    std::vector<Rgb> classFlux_;
+    std::vector<size_t> memberStart_;  // per cluster: where its faces' class indices start
+    std::vector<int> memberClass_;     // class index of each face of each cluster
 };
 
 // Links and the solver name nodes by one int: elements are >= 0 (a polygon's root element has the

@@ -91,8 +91,10 @@ TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     Scene sc = buildScene(t.input());
     Hierarchy h(sc, size_t(-1), true);
     for (size_t i = 0; i < h.numRoots(); ++i) h[i].B = Rgb{1, 2, 3};
+    h.updateClusterFlux();
     const ClusterTree& ct = h.clusters();
-    // A box's cluster seen from a point on the far wall: the alpha transfer is the sum over faces.
+    // A box's cluster seen from a point on the far wall: in the far field the alpha transfer (by
+    // normal class, from the centre) is the sum over faces (each from its own centre).
     int box = -1;
     for (size_t c = 0; c < ct.size(); ++c)
         if (ct[int(c)].end - ct[int(c)].begin == 6 && sc.polygons[ct.polygons()[ct[int(c)].begin]].object == 2)
@@ -102,9 +104,10 @@ TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     Rgb sum;
     for (int k = ct[box].begin; k < ct[box].end; ++k) sum += fluxAt(h, ct.polygons()[k], y, &n);
     Rgb all = fluxAt(h, clusterNode(box), y, &n);
-    EXPECT_NEAR(all.z, sum.z, 1e-12);
+    EXPECT_NEAR(all.z, sum.z, 0.02 * sum.z);
     EXPECT_GT(all.z, 0);
-    // Only the faces turned toward y count: the box's bottom and far sides add nothing.
+    // Only the faces turned toward y count: the box's bottom and far sides add nothing; and no
+    // point of a small box around y gets more than the bound.
     Bounds at;
     at.extend(y - Vec3{0.05, 0.05, 0.05});
     at.extend(y + Vec3{0.05, 0.05, 0.05});

@@ -42,6 +42,10 @@ public:
     explicit Hierarchy(const Scene& scene, size_t maxElements = size_t(-1), bool clustering = false);
     const Scene& scene() const { return scene_; }
     const ClusterTree& clusters() const { return clusters_; }
+    // Refreshes the clusters' emission from the polygons' current radiosities (their root elements).
+    void updateClusterFlux() {
+        clusters_.updateFlux(scene_, [&](int p) { return (*this)[size_t(p)].B; });
+    }
     size_t size() const { return size_.load(std::memory_order_acquire); }
     size_t numRoots() const { return numRoots_; }
     Element& operator[](size_t i) { return blocks_[i >> kBlockBits][i & kBlockMask]; }

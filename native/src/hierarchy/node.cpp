@@ -15,26 +15,6 @@ double boxDistance(const Bounds& a, const Bounds& b) {
     return std::sqrt(d2);
 }
 
-// Calls f(B, area, centre, normal) for every polygon of a cluster node, or once for an element.
-template <class F>
-void forEachEmitter(const Hierarchy& h, int node, F&& f) {
-    const Scene& sc = h.scene();
-    if (!isClusterNode(node)) {
-        const Element& e = h[size_t(node)];
-        f(e.B, e.area, e.center, sc.polygons[e.polygon].normal);
-        return;
-    }
-    const ClusterTree& ct = h.clusters();
-    const Cluster& c = ct[clusterIndex(node)];
-    const std::vector<int>& polys = ct.polygons();
-    for (int k = c.begin; k < c.end; ++k) {
-        int p = polys[k];
-        const Element& e = h[size_t(p)];  // the polygon's root element holds its mean radiosity
-        if (maxComponent(e.B) <= 0) continue;
-        f(e.B, e.area, e.center, sc.polygons[p].normal);
-    }
-}
-
 }  // namespace
 
 Bounds nodeBox(const Hierarchy& h, int node) {
@@ -51,41 +31,71 @@ Vec3 nodeCenter(const Hierarchy& h, int node) {
 }
 
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
-    Rgb sum;
-    forEachEmitter(h, source, [&](const Rgb& B, double area, const Vec3& c, const Vec3& nj) {
-        Vec3 d = y - c;
+    const Scene& sc = h.scene();
+    if (!isClusterNode(source)) {
+        const Element& e = h[size_t(source)];
+        Vec3 d = y - e.center;
         double r2 = length2(d);
-        if (r2 <= 0) return;
+        if (r2 <= 0) return {};
         double r = std::sqrt(r2);
-        double cj = dot(nj, d) / r;
-        if (cj <= 0) return;
+        double cj = dot(sc.polygons[e.polygon].normal, d) / r;
         double cy = n ? -dot(*n, d) / r : 1.0;
-        if (cy <= 0) return;
-        sum += B * (area * cj * cy / (M_PI * r2 + area));
-    });
-    return sum;
+        if (cj <= 0 || cy <= 0) return {};
+        return e.B * (e.area * cj * cy / (M_PI * r2 + e.area));
+    }
+    const ClusterTree& ct = h.clusters();
+    const Cluster& c = ct[clusterIndex(source)];
+    Vec3 d = y - c.center;
+    double r2 = length2(d);
+    if (r2 <= 0) return {};
+    double r = std::sqrt(r2);
+    Vec3 u = d / r;
+    double cy = n ? -dot(*n, u) : 1.0;
+    if (cy <= 0) return {};
+    Rgb sum;
+    for (int m = c.classBegin; m < c.classEnd; ++m) {
+        double cm = dot(ct.classNormal()[size_t(m)], u);
+        if (cm > 0) sum += ct.classFlux()[size_t(m)] * cm;
+    }
+    return sum * (cy / (M_PI * r2));
 }
 
 double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
     Bounds sb = nodeBox(h, source);
     double dmin = boxDistance(rb, sb);
     if (!(dmin > 0)) return HUGE_VAL;
-    Vec3 rc = rb.center();
-    double rr = 0.5 * length(rb.diagonal());
+    Vec3 rc = rb.center(), sc = sb.center();
+    double rr = 0.5 * length(rb.diagonal()), sr = 0.5 * length(sb.diagonal());
+    Vec3 d = rc - sc;
+    double r = length(d);
+    // Seen from anywhere in the source, the receiver's box lies within an angle of about
+    // (rr + sr) / r of the centre line: each cosine is widened by that (capped at 1).
+    double spread = r > 0 ? (rr + sr) / r : 1.0;
+    Vec3 u = r > 0 ? d / r : Vec3{};
     double sum = 0;
-    forEachEmitter(h, source, [&](const Rgb& B, double area, const Vec3& c, const Vec3& nj) {
-        Vec3 d = rc - c;
-        double r = length(d);
-        if (!(r > 0)) {
-            sum += maxComponent(B) * area;
-            return;
+    if (!isClusterNode(source)) {
+        const Element& e = h[size_t(source)];
+        double cm = std::min(1.0, std::max(0.0, dot(h.scene().polygons[e.polygon].normal, u) + spread));
+        sum = maxComponent(e.B) * e.area * cm;
+    } else {
+        // Face by face, each with its own direction to the receiver: a large cluster's faces see a
+        // nearby receiver from quite different angles, and one widening for all would be loose.
+        const ClusterTree& ct = h.clusters();
+        const Cluster& c = ct[clusterIndex(source)];
+        const Scene& scene = h.scene();
+        for (int k = c.begin; k < c.end; ++k) {
+            int p = ct.polygons()[size_t(k)];
+            const Element& e = h[size_t(p)];
+            double b = maxComponent(e.B);
+            if (b <= 0) continue;
+            Vec3 dj = rc - e.center;
+            double rj = length(dj);
+            double cj = rj > 0 ? std::min(1.0, std::max(0.0, dot(scene.polygons[size_t(p)].normal, dj) / rj +
+                                                                 (rr + std::sqrt(e.area)) / rj))
+                               : 1.0;
+            sum += b * e.area * cj;
         }
-        // The receiver's box spans an angle of about rr / r around d; the emitter's own extent, of
-        // sqrt(area) / r more: a cosine bound widened by both (capped at 1).
-        double spread = (rr + std::sqrt(area)) / r;
-        double cj = std::min(1.0, std::max(0.0, dot(nj, d) / r + spread));
-        sum += maxComponent(B) * area * cj;
-    });
+    }
     return sum / (M_PI * dmin * dmin);
 }
 

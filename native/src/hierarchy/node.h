@@ -10,10 +10,12 @@ namespace penumbra {
 Bounds nodeBox(const Hierarchy& h, int node);
 Vec3 nodeCenter(const Hierarchy& h, int node);
 
-// Irradiance at y from the polygons of `source` (a cluster), or from the element itself, each taken
-// as a small emitter at its centre: sum of B_j A_j cos_j cos_y / (pi r^2 + A_j). Without a receiver
-// normal (n == nullptr) cos_y is 1: the flux density that a cluster receiver then shares among its
-// faces by their own cosines. The + A_j keeps the point approximation finite when r is small.
+// Irradiance at y from `source`. An element is a small emitter at its centre: B A cos cos_y /
+// (pi r^2 + A), the + A keeping it finite when r is small. A cluster emits from its centre, each
+// normal class by its own cosine: sum over classes of (sum of B A) max(0, n_m . u) cos_y / (pi r^2),
+// which is the sum over its faces in the far field (Hierarchy::updateClusterFlux must be current).
+// Without a receiver normal (n == nullptr) cos_y is 1: the flux density that a cluster receiver then
+// shares among its faces by their own cosines.
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n);
 
 // Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`, at

@@ -10,12 +10,16 @@ namespace penumbra {
 
 void Solver::prepareClusters(const std::vector<Link>& links) {
     const ClusterTree& ct = h_.clusters();
+    const Scene& sc = h_.scene();
     clusterLinks_.assign(ct.size(), {0, 0});
-    linkFlux_.assign(links.size(), Rgb{});
-    linkDir_.assign(links.size(), Vec3{});
+    // Links into clusters sort first (clusters are negative nodes).
+    size_t intoClusters = 0;
+    while (intoClusters < links.size() && isClusterNode(links[intoClusters].receiver)) ++intoClusters;
+    linkFlux_.assign(intoClusters, Rgb{});
+    linkDir_.assign(intoClusters, Vec3{});
     for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
         int r = links[groupStart_[g]].receiver;
-        if (!isClusterNode(r)) continue;
+        if (!isClusterNode(r)) break;
         clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
         for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
             linkDir_[i] = normalize(nodeCenter(h_, links[i].source) - ct[clusterIndex(r)].center);
@@ -30,6 +34,8 @@ void Solver::gather(const std::vector<Link>& links) {
         prepareClusters(links);
     }
     for (size_t i = 0; i < h_.size(); ++i) h_[i].irradiance = Rgb{};
+    const ClusterTree& ct = h_.clusters();
+    h_.updateClusterFlux();
     size_t groups = groupStart_.size() - 1;
     const Scene& sc = h_.scene();
     // Each receiver's links form one run, handled by one thread: the sum order is fixed.
@@ -37,7 +43,7 @@ void Solver::gather(const std::vector<Link>& links) {
         for (size_t g = b; g < e; ++g) {
             int r = links[groupStart_[g]].receiver;
             if (isClusterNode(r)) {
-                const Vec3& c = h_.clusters()[clusterIndex(r)].center;
+                const Vec3& c = ct[clusterIndex(r)].center;
                 for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
                     linkFlux_[i] = fluxAt(h_, links[i].source, c, nullptr) * double(links[i].V);
                 continue;

@@ -2,6 +2,7 @@
 // that receives gathers a flux density per link, which every polygon below it takes by its own
 // cosine toward that link's source before the polygons' push/pull.
 #pragma once
+#include <cstdint>
 #include <vector>
 
 #include "hierarchy/element.h"
