@@ -9,7 +9,7 @@ A closed room (floor, ceiling, four walls, all subdivided into roughly square fa
 lights under the ceiling, one per quadrant, filled with a grid of workstations. A workstation is a desk (top,
 four legs, a drawer unit), a monitor on a stand and a chair (seat, back, four legs): 65 quads. About 65 % of
 the polygons are workstations and the rest is the room's subdivision; the floor's subdivision absorbs the
-rounding, so the total lands within a fraction of a percent of the target (above a few hundred polygons).
+rounding, so the total lands within 1 % of the target from 200 polygons up (0.4 % from 500).
 
 The scene grows like a real floor plan: the workstation density is constant (one per 2 m x 2 m), so the room's
 area grows with the polygon count, and the lights grow with it (each covers 16 % of its quadrant at a fixed
