@@ -38,7 +38,7 @@ BOUNCES = 32
 # (epsilon, min_size): the default is the third; finer settings need a smaller min_size to take effect.
 PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.005), (5e-5, 0.002)]
 CYCLES_SAMPLES = [4, 16, 64, 256]
-RESOLUTION = {"cornell": 128, "office": 128, "blockers": 128}
+RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128}
 
 
 def parse_args():
