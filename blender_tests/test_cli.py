@@ -81,7 +81,9 @@ def test_cli_exit_codes(empty_scene, tmp_path):
     for flag in ("--quality", "--targets", "--min-size", "--visibility-rays", "--refine-passes", "Exit codes"):
         assert flag in r.stdout
     r = _run(blend, "--out", str(tmp_path / "o"), "--resolution", "3")
-    assert r.returncode == 2 and "must be between 8 and 16384" in r.stderr
+    assert r.returncode == 2 and "must be between 8 and 8192" in r.stderr
+    r = _run(blend, "--out", str(tmp_path / "o"), "--resolution", "8193")
+    assert r.returncode == 2 and "must be between 8 and 8192, got 8193" in r.stderr
     r = _run(blend, "--out", str(tmp_path / "o"), "--targets", "texture")
     assert r.returncode == 2 and "lightmap, color or both" in r.stderr
     # A scene that cannot be baked: no light. The message says what to add; report.json holds it too.

@@ -217,3 +217,29 @@ def test_worker_result_is_written_only_by_finish(empty_scene, penumbra):
     helpers.assert_same_state(before, helpers.blend_state())     # solved, not yet written
     report = job.finish()
     assert "Penumbra_Floor" in bpy.data.images and report["objects_baked"]
+
+
+def test_resolution_is_capped_at_what_the_solver_will_bake(empty_scene, penumbra):
+    """The panel, the Python API and the CLI stop at the same resolution, and the native texel budget takes a
+    lightmap of exactly that size, so a bake is never refused for its size after the whole solve."""
+    from penumbra import cli
+    top = penumbra.MAX_RESOLUTION
+    assert top == cli.MAX_RESOLUTION == 8192
+    assert type(empty_scene.penumbra).bl_rna.properties["resolution"].hard_max == top
+    empty_scene.penumbra.resolution = 16384
+    assert empty_scene.penumbra.resolution == top                 # the slider stops there
+    with pytest.raises(ValueError, match=r"resolution must be an integer in \[8, 8192\], got 8193"):
+        penumbra.bake(empty_scene, resolution=top + 1)           # before any export or solve
+    # The budget's message names its size; one texel row more than the cap is refused before allocating.
+    native = penumbra._native
+    verts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]],
+                     np.float32)
+    sol = native.solve(verts, np.array([[0, 1, 2, 3], [4, 5, 6, 7]], np.int32),
+                       np.array([[0.5] * 3, [0] * 3], np.float32), np.array([[0] * 3, [1] * 3], np.float32),
+                       np.array([0, native.LIGHT_ONLY], np.uint8), np.array([0, 0], np.int32), ["Quad"])
+    pos = verts[[0, 1, 2]][None].copy()
+    uv = np.array([[[0, 0], [1, 0], [1, 1]]], np.float32)
+    with pytest.raises(native.BudgetExceeded) as e:
+        sol.bake_lightmap(pos, uv, top + 1, top, 0)
+    budget = int(str(e.value).split("max_texels = ")[1].split()[0])
+    assert top * top <= budget < (top + 1) * top

@@ -49,6 +49,9 @@ Cancelled = getattr(_native, "Cancelled", None)
 SOLVER_KEYS = ("epsilon", "min_size", "visibility_rays", "max_iterations", "tolerance", "refine_passes",
                "threads")
 TARGETS = frozenset({"LIGHTMAP", "COLOR_ATTRIBUTE"})
+# The native solver's default memory guard, max_texels, is 8192 x 8192 per lightmap (about 60 bytes a texel
+# while baking, 4 GB at this size); a larger resolution would only be refused after the whole solve.
+MAX_RESOLUTION = 8192
 DEFAULTS = {"resolution": 256, "margin": 4, "uv_map": None, "targets": TARGETS, "selection_only": False,
             "output_dir": None}
 
@@ -67,7 +70,7 @@ def _settings(given):
     s["targets"] = frozenset(s["targets"] if not isinstance(s["targets"], str) else {s["targets"]})
     if not s["targets"] or not s["targets"] <= TARGETS:
         raise ValueError(f"targets must be a non-empty subset of {sorted(TARGETS)}, got {sorted(s['targets'])}")
-    for key, lo, hi in (("resolution", 8, 16384), ("margin", 0, 1024)):
+    for key, lo, hi in (("resolution", 8, MAX_RESOLUTION), ("margin", 0, 1024)):
         v = s[key]
         if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
             raise ValueError(f"{key} must be an integer in [{lo}, {hi}], got {v!r}")

@@ -15,6 +15,8 @@ import sys
 import time
 
 EXIT_OK, EXIT_USAGE, EXIT_SCENE, EXIT_FAILED = 0, 2, 3, 4
+# penumbra.MAX_RESOLUTION, repeated because options are parsed before the add-on can be imported (tested equal).
+MAX_RESOLUTION = 8192
 QUALITY = ("draft", "medium", "high")
 TARGETS = {"lightmap": {"LIGHTMAP"}, "color": {"COLOR_ATTRIBUTE"}, "both": {"LIGHTMAP", "COLOR_ATTRIBUTE"}}
 
@@ -56,8 +58,8 @@ def parser():
                          "--min-size override its thresholds")
     ap.add_argument("--targets", type=_targets, metavar="{lightmap,color,both}",
                     help="bake into lightmap images, color attributes or both")
-    ap.add_argument("--resolution", type=_ranged(int, 8, 16384), metavar="N",
-                    help="lightmap width and height in pixels")
+    ap.add_argument("--resolution", type=_ranged(int, 8, MAX_RESOLUTION), metavar="N",
+                    help=f"lightmap width and height in pixels, at most {MAX_RESOLUTION}")
     ap.add_argument("--margin", type=_ranged(int, 0, 64), metavar="N", help="pixels filled around UV islands")
     ap.add_argument("--uv-map", metavar="NAME",
                     help="existing UV map for the lightmaps (default: create and unwrap 'PenumbraLightmap')")

@@ -10,6 +10,8 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
+from . import MAX_RESOLUTION
+
 # Solver thresholds per quality preset. Measured on the Cornell box (examples/cornell_box.py, 128x128
 # lightmaps) against the Cycles reference in blender_tests/data, 2 shared cores; see docs/ui.md.
 PRESETS = {
@@ -72,7 +74,8 @@ class PenumbraSettings(bpy.types.PropertyGroup):
     resolution: IntProperty(
         name="Resolution",
         description="Width and height of each object's lightmap, in pixels. Double it for sharper shadows; "
-                    "memory and bake time grow with its square", default=256, min=8, max=16384, soft_max=4096)
+                    "memory and bake time grow with its square (at most 8192: about 4 GB while baking)",
+        default=256, min=8, max=MAX_RESOLUTION, soft_max=4096)
     margin: IntProperty(
         name="Margin",
         description="Pixels filled around each UV island so that filtering and mipmaps do not pull in black "

@@ -5,9 +5,49 @@
 
 namespace penumbra {
 
+namespace {
+
+// How far a point on any triangulation of a polygon's input face can sit from the plane of one of the
+// face's elements: the spread of the input face's corners along that element's normal. Zero for
+// triangles; up to the planarity check's 1e-4 for quads kept whole; the warp for quads the scene split,
+// whose caller (Blender's loop triangles) may cut along the other diagonal.
+std::vector<double> faceThickness(const Scene& sc) {
+    std::vector<std::vector<int>> byInput;
+    for (size_t i = 0; i < sc.polygons.size(); ++i) {
+        size_t in = size_t(std::max(sc.polygons[i].input, 0));
+        if (in >= byInput.size()) byInput.resize(in + 1);
+        byInput[in].push_back(int(i));
+    }
+    std::vector<double> out(sc.polygons.size(), 0.0);
+    for (const auto& group : byInput)
+        for (int i : group) {
+            const ScenePolygon& p = sc.polygons[i];
+            double lo = HUGE_VAL, hi = -HUGE_VAL;
+            for (int j : group)
+                for (int k = 0; k < sc.polygons[j].geom.n; ++k) {
+                    double d = dot(sc.polygons[j].geom.v[k], p.normal);
+                    lo = std::min(lo, d);
+                    hi = std::max(hi, d);
+                }
+            out[i] = hi - lo;
+        }
+    return out;
+}
+
+}  // namespace
+
 RadianceField::RadianceField(const Hierarchy& h) {
     const Scene& sc = h.scene();
     diagonal_ = sc.diagonal;
+    // A point handed in lies on its own surface up to float32 rounding of the caller's coordinates
+    // (a few ulps of the largest input coordinate, which is large for a scene far from the origin) and
+    // double rounding here. Anything further off a leaf's plane is another surface: a face 1 mm above a
+    // floor is a different surface however coarse the floor's leaves are, so this does not grow with
+    // the leaf.
+    Vec3 far = vmax(vmax(sc.bounds.lo + sc.offset, -(sc.bounds.lo + sc.offset)),
+                    vmax(sc.bounds.hi + sc.offset, -(sc.bounds.hi + sc.offset)));
+    double onPlane = 1e-5 * diagonal_ + 4.0 * std::ldexp(maxComponent(far), -23);
+    std::vector<double> thickness = faceThickness(sc);
     for (size_t i = 0; i < h.size(); ++i) {
         const Element& e = h[i];
         if (!e.isLeaf()) continue;
@@ -36,9 +76,14 @@ RadianceField::RadianceField(const Hierarchy& h) {
         l.g22 = dot(l.e2, l.e2);
         l.det = l.g11 * l.g22 - l.g12 * l.g12;
         if (!(l.det > 0)) continue;
-        double r = 2.0 * (length(l.e1) + length(l.e2));
-        l.planeTol = 0.25 * r + 1e-7 * diagonal_;
-        Vec3 ext{r + l.planeTol, r + l.planeTol, r + l.planeTol};
+        l.reach = length(l.e1) + length(l.e2);
+        double r = 2.0 * l.reach;
+        l.planeTol = onPlane + thickness[e.polygon];
+        // Weighted points are within a = 0.875 r of the centre in the plane and, across a fold of up to
+        // 26 degrees (the normal test), within 0.44 |p - c| + planeTol of it across, which puts them
+        // within 1.11 a + 1.78 planeTol of the centre.
+        double ext1 = r + 2 * l.planeTol;
+        Vec3 ext{ext1, ext1, ext1};
         l.support.extend(l.center - ext);
         l.support.extend(l.center + ext);
         l.value = (e.B - p.emission) / M_PI;
@@ -53,7 +98,8 @@ RadianceField::RadianceField(const Hierarchy& h) {
 double RadianceField::weight(const Leaf& l, const Vec3& p, const Vec3& n) const {
     if (dot(l.normal, n) < 0.9) return 0;  // another surface (a wall meeting the floor)
     Vec3 d = p - l.center;
-    if (std::fabs(dot(d, l.normal)) > l.planeTol) return 0;  // a parallel surface nearby
+    double off = dot(d, l.normal);
+    if (std::fabs(off) > l.planeTol && !acrossFold(l, d, off, n)) return 0;  // a parallel surface nearby
     double b1 = dot(d, l.e1), b2 = dot(d, l.e2);
     double s = (l.g22 * b1 - l.g12 * b2) / l.det, t = (l.g11 * b2 - l.g12 * b1) / l.det;
     // Support 1.75 half-widths: short of a same-size neighbour's centre, so leaf centres keep their own
@@ -61,6 +107,19 @@ double RadianceField::weight(const Leaf& l, const Vec3& p, const Vec3& n) const 
     // Cycles on the Cornell box, 1.75 gives 1.64 %; 1.5 gives 1.58 % but point values lose 1 %).
     double ws = 1 - std::fabs(s) / 1.75, wt = 1 - std::fabs(t) / 1.75;
     return ws > 0 && wt > 0 ? ws * wt : 0;
+}
+
+// Facets of one tessellated curved surface meet at folds, and blending across them keeps the
+// reconstruction continuous there. A point on the neighbouring facet, at distance a from the fold, is
+// a sin(theta) off the leaf's plane, and the leaf's centre, at b from the fold on the other side, is
+// b sin(theta) off the point's plane on the same side: the offsets agree in sign and are bounded by
+// sin(theta) |p - c|. A parallel surface at height h gives offsets +h and -h instead, and a tilted one
+// that does not reach the leaf also disagrees in sign, so both are refused.
+bool RadianceField::acrossFold(const Leaf& l, const Vec3& d, double off, const Vec3& n) const {
+    double back = -dot(d, n);  // the leaf centre's offset from the point's plane
+    if (off > 0 ? back < -l.planeTol : back > l.planeTol) return false;
+    double sinTheta = length(cross(l.normal, n));
+    return std::fabs(off) <= sinTheta * length(d) + l.planeTol;
 }
 
 Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
@@ -78,18 +137,28 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
     });
     if (wsum > 0) return sum / wsum;
     // The point lies off every leaf's support (a vertex of a modifier-displaced mesh, a face that
-    // was too small to keep): take the nearest leaf facing the same way, searching wider boxes.
+    // was too small to keep): take the nearest leaf facing the same way, searching wider boxes. Nearest
+    // to the element rather than to its centre, so that a coarse leaf of a parallel surface whose
+    // centre happens to be close does not beat the fine leaf the point is over; among leaves equally
+    // near, the closest centre, then the lowest index, so the choice does not depend on rounding.
+    const double band = 1e-18 * diagonal_ * diagonal_;
     for (double r = 1e-3 * diagonal_; r <= 4 * diagonal_; r *= 4) {
         Bounds box;
         box.extend(p - Vec3{r, r, r});
         box.extend(p + Vec3{r, r, r});
-        double best = HUGE_VAL;
+        double best = HUGE_VAL, bestCentre = HUGE_VAL;
         int bestLeaf = -1;
         supports_.query([&](const Bounds& b) { return overlaps(b, box); }, [&](int i) {
             const Leaf& l = leaves_[i];
             if (dot(l.normal, n) <= 0) return;
-            double d2 = length2(l.center - p);
-            if (d2 < best || (d2 == best && i < bestLeaf)) { best = d2; bestLeaf = i; }
+            Vec3 d = p - l.center;
+            double off = dot(d, l.normal);
+            double inPlane = std::sqrt(std::max(0.0, length2(d) - off * off));
+            double excess = std::max(0.0, inPlane - l.reach);
+            double d2 = off * off + excess * excess, c2 = length2(d);
+            bool nearer = d2 < best - band ||
+                          (d2 <= best + band && (c2 < bestCentre || (c2 == bestCentre && i < bestLeaf)));
+            if (nearer) { best = d2; bestCentre = c2; bestLeaf = i; }
         });
         if (bestLeaf >= 0 && best <= r * r) return leaves_[bestLeaf].value;
     }

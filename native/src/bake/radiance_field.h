@@ -1,7 +1,9 @@
 // The solution as a function on surfaces: outgoing reflected radiance at any point. Leaf values are
 // blended with tensor-product tent weights in each leaf's own frame, so the reconstruction is
 // continuous across element edges, T-vertices and polygon boundaries of one surface, and exactly the
-// leaf value at the centre of a leaf whose neighbours are the same size.
+// leaf value at the centre of a leaf whose neighbours are the same size. A leaf serves only points of
+// its own surface: on its plane (to float32 rounding and the warp of its face), or across a shallow
+// fold onto a neighbouring facet; never a parallel surface, however close.
 #pragma once
 #include <vector>
 
@@ -22,11 +24,13 @@ private:
     struct Leaf {
         Vec3 center, normal, e1, e2;  // e1, e2: half-axes of the element's parallelogram
         double g11, g12, g22, det;    // Gram matrix of (e1, e2), for in-plane coordinates
-        double planeTol;
+        double planeTol;              // how far off its plane a point of its own surface can be
+        double reach;                 // |e1| + |e2|: no corner is further from the centre
         Rgb value;                    // (B - E) / pi
         Bounds support;
     };
     double weight(const Leaf& l, const Vec3& p, const Vec3& n) const;
+    bool acrossFold(const Leaf& l, const Vec3& d, double off, const Vec3& n) const;
 
     std::vector<Leaf> leaves_;
     BoxTree supports_;  // over leaves_[i].support
