@@ -131,22 +131,28 @@ def build_blockers(scene=None):
     return obs
 
 
+def _office_room(W, D, H, faces, prefix, scene):
+    """A closed W x D x H room facing inward, with faces = (along x, along y, along z) faces per side."""
+    nx, ny, nz = faces
+    room = MeshBuilder()
+    room.grid((-W / 2, -D / 2, 0), (W, 0, 0), (0, D, 0), nx, ny, mat=0)           # floor, +z
+    room.grid((-W / 2, -D / 2, H), (0, D, 0), (W, 0, 0), ny, nx, mat=2)           # ceiling, -z
+    room.grid((-W / 2, D / 2, 0), (W, 0, 0), (0, 0, H), nx, nz, mat=1)            # back wall, -y
+    room.grid((W / 2, -D / 2, 0), (0, 0, H), (0, D, 0), nz, ny, mat=1)            # right wall, -x
+    room.grid((-W / 2, -D / 2, 0), (0, D, 0), (0, 0, H), ny, nz, mat=3)           # left wall, +x
+    room.grid((-W / 2, -D / 2, 0), (0, 0, H), (W, 0, 0), nz, nx, mat=1)           # front wall, +y
+    return room.build("Room", [_diffuse(prefix + "Floor", (0.45, 0.35, 0.25)),
+                               _diffuse(prefix + "Wall", (0.75, 0.75, 0.72)),
+                               _diffuse(prefix + "Ceiling", (0.8, 0.8, 0.8)),
+                               _diffuse(prefix + "Accent", (0.6, 0.25, 0.2))], scene)
+
+
 def build_office(scene=None):
     scene = scene or bpy.context.scene
     W, D, H = 6.0, 4.5, 3.0
     obs = {}
-    room = MeshBuilder()
     # Inward-facing walls, cut into 0.5 m faces so per-face errors resolve the light's falloff.
-    room.grid((-W / 2, -D / 2, 0), (W, 0, 0), (0, D, 0), 12, 9, mat=0)            # floor, +z
-    room.grid((-W / 2, -D / 2, H), (0, D, 0), (W, 0, 0), 9, 12, mat=2)            # ceiling, -z
-    room.grid((-W / 2, D / 2, 0), (W, 0, 0), (0, 0, H), 12, 6, mat=1)             # back wall, -y
-    room.grid((W / 2, -D / 2, 0), (0, 0, H), (0, D, 0), 6, 9, mat=1)              # right wall, -x
-    room.grid((-W / 2, -D / 2, 0), (0, D, 0), (0, 0, H), 9, 6, mat=3)             # left wall, +x
-    room.grid((-W / 2, -D / 2, 0), (0, 0, H), (W, 0, 0), 6, 12, mat=1)            # front wall, +y
-    obs["Room"] = room.build("Room", [_diffuse("OfficeFloor", (0.45, 0.35, 0.25)),
-                                      _diffuse("OfficeWall", (0.75, 0.75, 0.72)),
-                                      _diffuse("OfficeCeiling", (0.8, 0.8, 0.8)),
-                                      _diffuse("OfficeAccent", (0.6, 0.25, 0.2))], scene)
+    obs["Room"] = _office_room(W, D, H, (12, 9, 6), "Office", scene)
     fur = MeshBuilder()
     for cx in (-1.4, 1.4):
         for cy in (-0.6, 0.9):
@@ -178,18 +184,8 @@ def build_office5k(scene=None):
     scene = scene or bpy.context.scene
     W, D, H = 6.0, 4.5, 3.0
     obs = {}
-    room = MeshBuilder()
     # 0.2 m faces everywhere (22.5 along the depth rounds to 22): about 2,900 of the 5,000 polygons.
-    room.grid((-W / 2, -D / 2, 0), (W, 0, 0), (0, D, 0), 30, 22, mat=0)           # floor, +z
-    room.grid((-W / 2, -D / 2, H), (0, D, 0), (W, 0, 0), 22, 30, mat=2)           # ceiling, -z
-    room.grid((-W / 2, D / 2, 0), (W, 0, 0), (0, 0, H), 30, 15, mat=1)            # back wall, -y
-    room.grid((W / 2, -D / 2, 0), (0, 0, H), (0, D, 0), 15, 22, mat=1)            # right wall, -x
-    room.grid((-W / 2, -D / 2, 0), (0, D, 0), (0, 0, H), 22, 15, mat=3)           # left wall, +x
-    room.grid((-W / 2, -D / 2, 0), (0, 0, H), (W, 0, 0), 15, 30, mat=1)           # front wall, +y
-    obs["Room"] = room.build("Room", [_diffuse("Office5kFloor", (0.45, 0.35, 0.25)),
-                                      _diffuse("Office5kWall", (0.75, 0.75, 0.72)),
-                                      _diffuse("Office5kCeiling", (0.8, 0.8, 0.8)),
-                                      _diffuse("Office5kAccent", (0.6, 0.25, 0.2))], scene)
+    obs["Room"] = _office_room(W, D, H, (30, 22, 15), "Office5k", scene)
     fur = MeshBuilder()
     desks = [(cx, cy) for cx in (-1.4, 1.4) for cy in (-0.6, 0.9)]
     for cx, cy in desks:

@@ -10,7 +10,6 @@ namespace penumbra {
 
 void Solver::prepareClusters(const std::vector<Link>& links) {
     const ClusterTree& ct = h_.clusters();
-    const Scene& sc = h_.scene();
     clusterLinks_.assign(ct.size(), {0, 0});
     // Links into clusters sort first (clusters are negative nodes).
     size_t intoClusters = 0;
