@@ -198,9 +198,15 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
             refine(r, s, out);
     };
     Bounds rb = nodeBox(h_, ri), sb = nodeBox(h_, si);
-    // Touching boxes leave no distance to bound the transfer with: they are always split.
+    // Touching boxes leave no distance to bound the transfer with: they are always split. Boxes closer
+    // than a hundredth of the smaller one count as touching, so that whether a box resting on the floor
+    // touches it does not hang on the last bits of float32 input (a scene far from the origin).
     bool openReceiver = false;
-    if (ri != si && !overlaps(rb, sb) &&
+    double gap = 0.01 * std::min(length(rb.diagonal()), length(sb.diagonal()));
+    Bounds rgrown = rb;
+    rgrown.extend(rb.lo - Vec3{gap, gap, gap});
+    rgrown.extend(rb.hi + Vec3{gap, gap, gap});
+    if (ri != si && !overlaps(rgrown, sb) &&
         receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
         Link l;
         if (!estimateCluster(ri, si, rb, sb, l)) return;

@@ -19,12 +19,15 @@ Settings cheap() {
     return s;
 }
 
-// Samples at every face's corners and centre, with the face's normal.
+// Samples at every face's corners and centre, with the face's normal. Lamps (light-only faces) are
+// not surfaces anything is baked on: a point on one has no value of its own, only whatever surface lies
+// within the reconstruction's float32 tolerance (which grows far from the origin).
 struct Probe {
     std::vector<float> pts, nrm;
     explicit Probe(const TestScene& t, int object = -1) {
         for (size_t p = 0; p < t.flags.size(); ++p) {
             if (object >= 0 && t.objectIndex[p] != object) continue;
+            if (t.flags[p] & kLightOnly) continue;
             int nv = t.polygons[p * 4 + 3] < 0 ? 3 : 4;
             Vec3 v[4], c;
             for (int k = 0; k < nv; ++k) {
