@@ -114,6 +114,19 @@ def test_advanced_settings_reach_the_solver(empty_scene):
     assert any("not converged" in w for w in r["warnings"])     # max_iterations 1 stops the bounces early
 
 
+def test_clustering_setting_reaches_the_solver(empty_scene):
+    s = _box(empty_scene)
+    s.color_attribute = False
+    s.quality = "DRAFT"
+    assert s.clustering                                           # on by default
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    assert _last(empty_scene)["clusters"] > 0
+    s.clustering = False
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    r = _last(empty_scene)
+    assert r["settings"]["clustering"] is False and r["clusters"] == 0 and r["cluster_links"] == 0
+
+
 def test_settings_and_report_are_saved_with_the_file(empty_scene, tmp_path):
     s = _box(empty_scene)
     s.quality = "DRAFT"

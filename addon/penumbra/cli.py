@@ -81,6 +81,8 @@ def parser():
     ap.add_argument("--refine-passes", type=_ranged(int, 1, 16), metavar="N",
                     help="times the subdivision is revisited once bounced light is known")
     ap.add_argument("--threads", type=_ranged(int, 0, 1024), metavar="N", help="solver threads (0: all cores)")
+    ap.add_argument("--clustering", action=argparse.BooleanOptionalAction, default=None,
+                    help="group faces into clusters (default: on, or the file's setting)")
     ap.add_argument("--save", metavar="FILE.blend",
                     help="save the baked .blend here (default: DIR/baked.blend; 'none' to skip)")
     ap.add_argument("--scene", help="scene name (default: the active scene)")
@@ -94,7 +96,7 @@ def settings_from(panel, args):
     if args.quality:
         s.update(PRESETS[args.quality.upper()])
     for key in ("resolution", "margin", "uv_map", "selection_only", "epsilon", "min_size", "visibility_rays",
-                "max_iterations", "tolerance", "refine_passes", "threads"):
+                "max_iterations", "tolerance", "refine_passes", "threads", "clustering"):
         v = getattr(args, key)
         if v is not None:
             s[key] = v

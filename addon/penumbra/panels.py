@@ -118,6 +118,7 @@ class _Advanced:
         col.prop(s, "tolerance")
         col.prop(s, "refine_passes")
         col.prop(s, "threads")
+        col.prop(s, "clustering")
 
 
 class _Report:

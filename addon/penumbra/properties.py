@@ -123,6 +123,11 @@ class PenumbraSettings(bpy.types.PropertyGroup):
     threads: IntProperty(
         name="Threads", description="CPU threads for the solver. 0: all cores, except that the Bake button leaves "
                   "one core to Blender so that the window stays responsive", default=0, min=0, max=1024)
+    clustering: BoolProperty(
+        name="Clustering",
+        description="Group faces into clusters so that distant groups exchange light as one. Much faster on "
+                    "scenes with many faces; off compares every face with every other face first",
+        default=True)
     last_report: StringProperty(
         name="Last Report", description="The last successful bake's report (JSON), saved with the file",
         default="", options={"HIDDEN"})
@@ -134,7 +139,8 @@ class PenumbraSettings(bpy.types.PropertyGroup):
                 "uv_map": self.uv_map or None, "selection_only": self.selection_only,
                 "output_dir": self.output_dir or None, "epsilon": self.epsilon, "min_size": self.min_size,
                 "visibility_rays": self.visibility_rays, "max_iterations": self.max_iterations,
-                "tolerance": self.tolerance, "refine_passes": self.refine_passes, "threads": self.threads}
+                "tolerance": self.tolerance, "refine_passes": self.refine_passes, "threads": self.threads,
+                "clustering": self.clustering}
 
     def report(self):
         try:

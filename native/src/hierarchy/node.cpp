@@ -6,6 +6,10 @@
 namespace penumbra {
 namespace {
 
+// A cluster is in its far field beyond 1 / kNearField of its radius: the centre's direction then
+// stands for every face's to within about 12 degrees.
+constexpr double kNearField = 0.2;
+
 double boxDistance(const Bounds& a, const Bounds& b) {
     double d2 = 0;
     for (int k = 0; k < 3; ++k) {
@@ -49,6 +53,24 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     double r2 = length2(d);
     if (r2 <= 0) return {};
     double r = std::sqrt(r2);
+    if (c.radius > kNearField * r) {
+        // Near a cluster its faces see y from different directions, and a face that the centre's
+        // direction puts at grazing incidence may still light y: face by face, each from its centre.
+        Rgb sum;
+        for (int k = c.begin; k < c.end; ++k) {
+            int p = ct.polygons()[size_t(k)];
+            const Element& e = h[size_t(p)];
+            if (maxComponent(e.B) <= 0) continue;
+            Vec3 dj = y - e.center;
+            double rj2 = length2(dj);
+            if (rj2 <= 0) continue;
+            double rj = std::sqrt(rj2);
+            double cj = dot(sc.polygons[size_t(p)].normal, dj) / rj;
+            double cyj = n ? -dot(*n, dj) / rj : 1.0;
+            if (cj > 0 && cyj > 0) sum += e.B * (e.area * cj * cyj / (M_PI * rj2 + e.area));
+        }
+        return sum;
+    }
     Vec3 u = d / r;
     double cy = n ? -dot(*n, u) : 1.0;
     if (cy <= 0) return {};

@@ -39,6 +39,10 @@ int samplePoints(const Element& e, Vec3* pts) {
     return 3;
 }
 
+// A cluster source is linked only beyond 1 / kFarField of its radius. 0.3 and 0.4 measured 1.74 % and
+// 2.08 % against Cycles on the Cornell box, 0.2 gives 1.65 %, as without clusters (1.64 %).
+constexpr double kFarField = 0.2;
+
 }  // namespace
 
 Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)
@@ -206,7 +210,12 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     Bounds rgrown = rb;
     rgrown.extend(rb.lo - Vec3{gap, gap, gap});
     rgrown.extend(rb.hi + Vec3{gap, gap, gap});
-    if (ri != si && !overlaps(rgrown, sb) &&
+    // A cluster source emits from its centre by normal class, which is right only in its far field:
+    // nearer, 1/r^2 averaged over its faces exceeds 1/r^2 at the centre and the transfer comes out low,
+    // so such pairs are split instead. (A cluster receiver's faces each gather at their own centre.)
+    double dist = length(nodeCenter(h_, ri) - nodeCenter(h_, si));
+    bool sourceFar = !isClusterNode(si) || h_.clusters()[clusterIndex(si)].radius <= kFarField * dist;
+    if (ri != si && !overlaps(rgrown, sb) && sourceFar &&
         receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
         Link l;
         if (!estimateCluster(ri, si, rb, sb, l)) return;

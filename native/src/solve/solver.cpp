@@ -9,19 +9,12 @@
 namespace penumbra {
 
 void Solver::prepareClusters(const std::vector<Link>& links) {
-    const ClusterTree& ct = h_.clusters();
-    clusterLinks_.assign(ct.size(), {0, 0});
+    clusterLinks_.assign(h_.clusters().size(), {0, 0});
     // Links into clusters sort first (clusters are negative nodes).
-    size_t intoClusters = 0;
-    while (intoClusters < links.size() && isClusterNode(links[intoClusters].receiver)) ++intoClusters;
-    linkFlux_.assign(intoClusters, Rgb{});
-    linkDir_.assign(intoClusters, Vec3{});
     for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
         int r = links[groupStart_[g]].receiver;
         if (!isClusterNode(r)) break;
         clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
-        for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
-            linkDir_[i] = normalize(nodeCenter(h_, links[i].source) - ct[clusterIndex(r)].center);
     }
 }
 
@@ -41,12 +34,7 @@ void Solver::gather(const std::vector<Link>& links) {
     parallelFor(groups, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
         for (size_t g = b; g < e; ++g) {
             int r = links[groupStart_[g]].receiver;
-            if (isClusterNode(r)) {
-                const Vec3& c = ct[clusterIndex(r)].center;
-                for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
-                    linkFlux_[i] = fluxAt(h_, links[i].source, c, nullptr) * double(links[i].V);
-                continue;
-            }
+            if (isClusterNode(r)) continue;  // its faces gather in distributeClusters
             Element& re = h_[r];
             const Vec3& n = sc.polygons[re.polygon].normal;
             Rgb sum;
@@ -62,19 +50,22 @@ void Solver::gather(const std::vector<Link>& links) {
     });
 }
 
-void Solver::distributeClusters(std::vector<Rgb>& down) const {
+void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>& down) const {
     const ClusterTree& ct = h_.clusters();
     const Scene& sc = h_.scene();
+    // Every face below a receiving cluster gathers that cluster's links at its own centre and normal:
+    // a cluster receiver is not evaluated at its centre, whose 1/r^2 would understate what its nearer
+    // faces get.
     parallelFor(down.size(), resolveThreads(settings_.threads), 256, [&](size_t b, size_t e, int) {
         for (size_t p = b; p < e; ++p) {
+            const ScenePolygon& poly = sc.polygons[p];
+            if (!poly.receives) continue;
             Rgb sum;
-            const Vec3& n = sc.polygons[p].normal;
+            const Vec3& y = h_[p].center;
             for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent) {
                 auto [lo, hi] = clusterLinks_[size_t(c)];
-                for (size_t i = lo; i < hi; ++i) {
-                    double cosine = dot(n, linkDir_[i]);
-                    if (cosine > 0) sum += linkFlux_[i] * cosine;
-                }
+                for (size_t i = lo; i < hi; ++i)
+                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * double(links[i].V);
             }
             down[p] = sum;
         }
@@ -105,7 +96,7 @@ double Solver::sweep(const std::vector<Link>& links) {
     gather(links);
     size_t roots = h_.numRoots();
     std::vector<Rgb> down(roots);
-    if (!h_.clusters().empty()) distributeClusters(down);
+    if (!h_.clusters().empty()) distributeClusters(links, down);
     std::vector<double> change(roots, 0.0), refl(roots, 0.0);
     parallelFor(roots, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
         for (size_t r = b; r < e; ++r) pushPull(int(r), down[r], change[r], refl[r]);

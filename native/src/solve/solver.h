@@ -1,6 +1,6 @@
-// Gather and push/pull, iterated to convergence (Jacobi sweeps over the link hierarchy). A cluster
-// that receives gathers a flux density per link, which every polygon below it takes by its own
-// cosine toward that link's source before the polygons' push/pull.
+// Gather and push/pull, iterated to convergence (Jacobi sweeps over the link hierarchy). The links of
+// a receiving cluster are gathered by every polygon below it, each at its own centre and normal,
+// before the polygons' push/pull.
 #pragma once
 #include <cstdint>
 #include <vector>
@@ -35,11 +35,9 @@ private:
     Settings settings_;
     void prepareClusters(const std::vector<Link>& links);
     // Irradiance each polygon takes from the links of the clusters above it.
-    void distributeClusters(std::vector<Rgb>& down) const;
+    void distributeClusters(const std::vector<Link>& links, std::vector<Rgb>& down) const;
 
     std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
-    std::vector<Rgb> linkFlux_;       // per link into a cluster: flux density at the cluster centre
-    std::vector<Vec3> linkDir_;       // per link into a cluster: unit direction toward the source
     std::vector<std::pair<size_t, size_t>> clusterLinks_;  // link range of each receiving cluster
     double lastReflected_ = 0;
 };
