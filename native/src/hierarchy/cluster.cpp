@@ -19,9 +19,13 @@ Bounds polygonBox(const ScenePolygon& p) {
     return b;
 }
 
+// a >= b with sizes within a millionth counted equal, so that no choice hangs on the rounding of
+// coordinates (a cube room, a face exactly half its cluster).
+bool notSmaller(double a, double b) { return a >= b * (1 - 1e-6); }
+
 int longestAxis(const Bounds& b) {
     Vec3 d = b.diagonal();
-    return d.x >= d.y && d.x >= d.z ? 0 : (d.y >= d.z ? 1 : 2);
+    return notSmaller(d.x, d.y) && notSmaller(d.x, d.z) ? 0 : (notSmaller(d.y, d.z) ? 1 : 2);
 }
 
 uint64_t clusterKey(int c) {
@@ -84,7 +88,7 @@ void ClusterTree::build(const Scene& scene, std::vector<int>& items, int parent,
         own = items;
     } else {
         for (int p : items)
-            (length(polygonBox(scene.polygons[p]).diagonal()) >= kLargeFraction * diag ? own : rest).push_back(p);
+            (notSmaller(length(polygonBox(scene.polygons[p]).diagonal()), kLargeFraction * diag) ? own : rest).push_back(p);
         if (rest.size() <= 2) {
             own.insert(own.end(), rest.begin(), rest.end());
             rest.clear();
