@@ -37,6 +37,8 @@ UV = "Lightmap"
 BOUNCES = 32
 # (epsilon, min_size): the default is the third; finer settings need a smaller min_size to take effect.
 PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.005), (5e-5, 0.002)]
+# Each setting runs twice: standard refinement only, and hybrid with convolution links (the default).
+METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True})]
 CYCLES_SAMPLES = [4, 16, 64, 256]
 RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128}
 
@@ -52,6 +54,9 @@ def parse_args():
     ap.add_argument("--penumbra-timeout", type=float, default=120.0,
                     help="cancel a Penumbra setting after this many seconds")
     ap.add_argument("--quick", action="store_true", help="64 reference samples, 2 settings each: a smoke run")
+    ap.add_argument("--methods", default="standard,hybrid", help="Penumbra series to run: standard, hybrid")
+    ap.add_argument("--hybrid", default="{}", help="JSON of extra solver settings for the hybrid series, "
+                                                  "e.g. '{\"e_max\": 4}'")
     return ap.parse_args(argv)
 
 
@@ -201,24 +206,27 @@ def run_scene(penumbra, name, args):
               "faces": scorer.faces, "texels": scorer.texels, "penumbra": [], "cycles": []}
     settings = PENUMBRA_SETTINGS[::2] if args.quick else PENUMBRA_SETTINGS
     scene = bpy.context.scene
-    for eps, min_size in settings:
+    methods = [(m, {**extra, **(json.loads(args.hybrid) if m == "hybrid" else {})})
+               for m, extra in METHODS if m in args.methods.split(",")]
+    for (method, extra), (eps, min_size) in ((m, st) for m in methods for st in settings):
         deadline = time.perf_counter() + args.penumbra_timeout
 
         def progress(stage, frac):
             return time.perf_counter() < deadline
         try:
             rep = penumbra.bake(scene, progress=progress, resolution=res, uv_map=UV, targets={"LIGHTMAP"},
-                                epsilon=eps, min_size=min_size)
+                                epsilon=eps, min_size=min_size, **extra)
         except Exception as e:
-            log(f"{name}: Penumbra eps {eps} min_size {min_size}: stopped ({e})")
-            result["penumbra"].append({"epsilon": eps, "min_size": min_size, "stopped": str(e)})
+            log(f"{name}: Penumbra {method} eps {eps} min_size {min_size}: stopped ({e})")
+            result["penumbra"].append({"method": method, "epsilon": eps, "min_size": min_size, "stopped": str(e)})
             continue
         s = scorer.score(penumbra_maps(penumbra, receivers, rep))
-        row = {"epsilon": eps, "min_size": min_size, "seconds": rep["times"]["total"],
+        row = {"method": method, "epsilon": eps, "min_size": min_size, "seconds": rep["times"]["total"],
                "solve_seconds": rep["times"]["solve"], "elements": rep.get("elements"), "links": rep.get("links"),
-               "iterations": rep.get("iterations"), **s}
+               "convolution_links": rep.get("convolution_links", 0), "iterations": rep.get("iterations"), **s}
         result["penumbra"].append(row)
-        log(f"{name}: Penumbra eps {eps:g} min_size {min_size:g}: {row['seconds']:.2f} s, face "
+        log(f"{name}: Penumbra {method} eps {eps:g} min_size {min_size:g}: {row['seconds']:.2f} s, "
+            f"{row['convolution_links']} convolution links, face "
             f"{100 * s['face']:.2f} %, texel {100 * s['texel']:.2f} %, bias {100 * s['bias']:+.2f} %")
     penumbra.clear(scene)
     jobs = {n: (UV, res, res) for n in receivers}
@@ -284,9 +292,12 @@ def tables(results):
         lines.append("|---|---|---|---|---|---|---|---|")
         for p in r["penumbra"]:
             if "stopped" in p:
-                lines.append(f"| Penumbra | ε {p['epsilon']:g}, min_size {p['min_size']:g} | stopped | | | | | |")
+                lines.append(f"| Penumbra {p.get('method', 'standard')} | ε {p['epsilon']:g}, min_size "
+                             f"{p['min_size']:g} | stopped | | | | | |")
                 continue
-            lines.append(f"| Penumbra | ε {p['epsilon']:g}, min_size {p['min_size']:g} | {p['seconds']:.2f} | "
+            conv = f", {p['convolution_links']} conv. links" if p.get("convolution_links") else ""
+            lines.append(f"| Penumbra {p.get('method', 'standard')} | ε {p['epsilon']:g}, min_size {p['min_size']:g}{conv} | "
+                         f"{p['seconds']:.2f} | "
                          f"{100 * p['face']:.2f} % | {100 * p['face_corrected']:.2f} % | {100 * p['texel']:.2f} % | "
                          f"{100 * p['texel_corrected']:.2f} % | {100 * p['bias']:+.2f} % |")
         for c in r["cycles"]:
@@ -309,7 +320,8 @@ def tables(results):
                 if tc is None:
                     continue
                 mark = "*" if how == "extrapolated" else ""
-                lines.append(f"| {metric} | ε {p['epsilon']:g}, min_size {p['min_size']:g} | {100 * p[key]:.2f} % | "
+                lines.append(f"| {metric} | {p.get('method', 'standard')} ε {p['epsilon']:g}, min_size {p['min_size']:g} | "
+                             f"{100 * p[key]:.2f} % | "
                              f"{p['seconds']:.2f} | {tc:.1f}{mark} | {tc / p['seconds']:.2g}×{mark} |")
             c256 = next((c for c in r["cycles"] if c["samples"] == 256), None)
             if c256 is not None:
@@ -334,13 +346,17 @@ def plot(r, path):
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     for ax, metric, title in ((axes[0], "face_corrected", "per-face averages"),
                               (axes[1], "texel_corrected", "per texel")):
-        pen = [p for p in r["penumbra"] if "stopped" not in p and p[metric] > 0]
         cyc = [c for c in r["cycles"] if c[metric] > 0]
-        ax.loglog([p["seconds"] for p in pen], [100 * p[metric] for p in pen], "o-", color="tab:blue",
-                  label="Penumbra")
-        for p in pen:
-            ax.annotate(f"ε {p['epsilon']:g}", (p["seconds"], 100 * p[metric]), fontsize=7,
-                        textcoords="offset points", xytext=(4, 4))
+        for method, style, colour in (("standard", "o--", "tab:gray"), ("hybrid", "o-", "tab:blue")):
+            pen = [p for p in r["penumbra"] if "stopped" not in p and p[metric] > 0
+                   and p.get("method", "standard") == method]
+            if not pen:
+                continue
+            ax.loglog([p["seconds"] for p in pen], [100 * p[metric] for p in pen], style, color=colour,
+                      label=f"Penumbra {method}" + (" (convolution links)" if method == "hybrid" else ""))
+            for p in pen:
+                ax.annotate(f"ε {p['epsilon']:g}", (p["seconds"], 100 * p[metric]), fontsize=7, color=colour,
+                            textcoords="offset points", xytext=(4, 4))
         ax.loglog([c["seconds"] for c in cyc], [100 * c[metric] for c in cyc], "s-", color="tab:red",
                   label="Cycles DIFFUSE bake")
         for c in cyc:

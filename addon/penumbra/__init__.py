@@ -47,7 +47,7 @@ from . import export, writeback, preview as _preview  # noqa: E402
 Cancelled = getattr(_native, "Cancelled", None)
 
 SOLVER_KEYS = ("epsilon", "min_size", "visibility_rays", "max_iterations", "tolerance", "refine_passes",
-               "threads", "clustering")
+               "threads", "clustering", "convolution", "a_min", "e_max", "t_max", "max_texture")
 TARGETS = frozenset({"LIGHTMAP", "COLOR_ATTRIBUTE"})
 # The native solver's default memory guard, max_texels, is 8192 x 8192 per lightmap (about 60 bytes a texel
 # while baking, 4 GB at this size); a larger resolution would only be refused after the whole solve.
@@ -142,7 +142,8 @@ class Job:
         native_report = _jsonable(dict(solution.report))
         report["solver"] = native_report
         for key in ("polygons", "elements", "leaves", "links", "rays", "iterations", "residual",
-                    "refine_passes", "clusters", "cluster_links", "shafts_clear"):
+                    "refine_passes", "clusters", "cluster_links", "shafts_clear", "convolution_links",
+                    "convolution_tried", "convolution_refused", "convolution_texels", "convolution_max_error"):
             if key in native_report:
                 report[key] = native_report[key]
         report["warnings"] += [f"solver: {w}" for w in native_report.get("warnings", [])]

@@ -105,6 +105,14 @@ Settings parseSettings(const py::dict& d) {
             if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'clustering' must be True or False");
             s.clustering = v.cast<bool>();
         }
+        else if (k == "convolution") {
+            if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'convolution' must be True or False");
+            s.convolution = v.cast<bool>();
+        }
+        else if (k == "a_min") s.aMin = settingValue<double>(k, v);
+        else if (k == "e_max") s.eMax = settingValue<double>(k, v);
+        else if (k == "t_max") s.tMax = settingValue<double>(k, v);
+        else if (k == "max_texture") s.maxTexture = settingValue<int>(k, v);
         else if (k == "max_elements") s.maxElements = settingValue<size_t>(k, v);
         else if (k == "max_links") s.maxLinks = settingValue<size_t>(k, v);
         else if (k == "max_face_pairs") s.maxFacePairs = settingValue<double>(k, v);
@@ -126,6 +134,13 @@ py::dict reportDict(const Report& r) {
     d["shafts_clear"] = r.shaftsClear;
     d["clusters"] = r.clusters;
     d["cluster_links"] = r.clusterLinks;
+    d["convolution_links"] = r.convolutionLinks;
+    d["convolution_tried"] = r.convolutionTried;
+    d["convolution_texels"] = r.convolutionTexels;
+    d["convolution_max_error"] = r.convolutionMaxError;
+    py::dict refused;
+    for (auto& [k, v] : r.convolutionRefused) refused[py::str(k)] = v;
+    d["convolution_refused"] = refused;
     d["iterations"] = r.iterations;
     d["refine_passes"] = r.refinePasses;
     d["residual"] = r.residual;
@@ -161,6 +176,30 @@ void bindSolver(py::module_& m) {
 
     py::class_<Solution, std::shared_ptr<Solution>>(m, "Solution")
         .def_property_readonly("report", [](const Solution& s) { return reportDict(s.report()); })
+        .def_property_readonly("convolution_links",
+             [](const Solution& s) {
+                 py::list out;
+                 for (const ConvolutionLink& l : s.convolutionLinks()) {
+                     py::dict d;
+                     auto ints = [](const std::vector<int>& v) {
+                         Array<int32_t> a({py::ssize_t(v.size())});
+                         std::copy(v.begin(), v.end(), a.mutable_data());
+                         return a;
+                     };
+                     d["receiver_polygons"] = ints(l.receiverPolygons);
+                     d["source_polygons"] = ints(l.sourcePolygons);
+                     const SoftShadowTexture& t = *l.texture;
+                     Array<float> vis({py::ssize_t(t.n), py::ssize_t(t.n)});
+                     std::copy(t.visibility.begin(), t.visibility.end(), vis.mutable_data());
+                     d["visibility"] = vis;
+                     d["resolution"] = t.n;
+                     d["sub_blockers"] = t.subBlockers;
+                     d["error"] = l.error;
+                     d["blocker_triangles"] = l.blockerTriangles;
+                     out.append(d);
+                 }
+                 return out;
+             })
         .def("radiance",
              [](const Solution& s, py::object points, py::object normals) {
                  auto p = checked<float>(points, "points", {-1, 3});

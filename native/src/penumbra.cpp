@@ -38,6 +38,10 @@ void validateSettings(const Settings& s) {
     if (s.maxLinks < 1) bad("max_links must be at least 1");
     if (!(s.maxFacePairs >= 1)) bad("max_face_pairs must be at least 1");
     if (s.maxTexels < 1) bad("max_texels must be at least 1");
+    if (!(s.aMin >= 0) || !std::isfinite(s.aMin)) bad("a_min must be a number >= 0");
+    if (!(s.eMax > 0) || !std::isfinite(s.eMax)) bad("e_max must be a positive number");
+    if (!(s.tMax > 0) || !std::isfinite(s.tMax)) bad("t_max must be a positive number");
+    if (s.maxTexture < 16 || s.maxTexture > 4096) bad("max_texture must be in [16, 4096]");
 }
 
 void sortLinks(std::vector<Link>& links) {
@@ -79,9 +83,18 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     Refiner refiner(h, rays, settings);
     Solver solver(h, settings);
     std::vector<Link>& links = sol->links_;
+    std::vector<ConvolutionLink>& conv = sol->convLinks_;
+    CompleteTextures textures;
+    // Leaves change with every refinement pass, and with them the complete textures.
+    auto attachTextures = [&] {
+        conv = refiner.convolutionLinks();
+        textures = CompleteTextures(h, conv, sol->threads_);
+        solver.setConvolution(&conv, &textures);
+    };
     h.updateClusterFlux();
     links = refiner.linkAll(progress);
     remapLinks(links, h.canonicalize());
+    attachTextures();
     rep.seconds["refine"] = clock.lap();
     SolveResult res = solver.solve(links, progress);
     rep.seconds["solve"] = clock.lap();
@@ -92,6 +105,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         h.updateClusterFlux();
         links = refiner.rerefine(links, progress, changed);
         remapLinks(links, h.canonicalize());
+        attachTextures();
         rep.seconds["refine"] += clock.lap();
         if (!changed) break;
         res = solver.solve(links, progress);
@@ -106,7 +120,8 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         rep.warnings.push_back("solver stopped after max_iterations with estimated error " +
                                std::to_string(res.residual));
 
-    sol->field_ = RadianceField(h);
+    sol->field_ = conv.empty() ? RadianceField(h)
+                               : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
     rep.seconds["reconstruct"] = clock.lap();
     rep.elements = h.size();
     rep.leaves = h.countLeaves();
@@ -117,6 +132,18 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     rep.clusterLinks = size_t(std::count_if(links.begin(), links.end(), [](const Link& l) {
         return isClusterNode(l.receiver) || isClusterNode(l.source);
     }));
+    rep.convolutionLinks = conv.size();
+    for (const ConvolutionLink& l : conv) {
+        rep.convolutionTexels += size_t(l.texture->n) * size_t(l.texture->n);
+        rep.convolutionMaxError = std::max(rep.convolutionMaxError, l.error);
+    }
+    if (const ConvolutionSites* cs = refiner.convolutionSites()) {
+        const ConvolutionStats& st = cs->stats();
+        rep.convolutionTried = st.tried;
+        rep.convolutionRefused = {{"no_blocker", st.noBlocker}, {"intruder", st.intruder},
+                                  {"invalid", st.invalid}, {"too_coarse", st.tooCoarse}, {"too_slow", st.tooSlow}};
+        rep.seconds["convolution_textures"] = st.seconds;  // within "refine"
+    }
     checkProgress(progress, "solve", 1.0);
     return sol;
 }

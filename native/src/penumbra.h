@@ -20,6 +20,11 @@ struct Report {
     std::map<std::string, double> seconds;  // per stage
     size_t polygons = 0, elements = 0, leaves = 0, links = 0, rays = 0, shaftsClear = 0;
     size_t clusters = 0, clusterLinks = 0;  // cluster nodes; links with a cluster at either end
+    // Convolution links made; pairs that reached blocker selection; why the others were refused;
+    // texels of all their textures; the largest blocker error E_rr (texels) among them.
+    size_t convolutionLinks = 0, convolutionTried = 0, convolutionTexels = 0;
+    std::map<std::string, size_t> convolutionRefused;
+    double convolutionMaxError = 0;
     int iterations = 0, refinePasses = 0;
     double residual = 0;
     bool converged = false;
@@ -36,12 +41,14 @@ public:
     const Scene& scene() const { return *scene_; }
     const Hierarchy& hierarchy() const { return *hierarchy_; }
     const std::vector<Link>& links() const { return links_; }
+    const std::vector<ConvolutionLink>& convolutionLinks() const { return convLinks_; }
 
 private:
     friend std::unique_ptr<Solution> solve(const SceneInput&, const Settings&, Progress*);
     std::unique_ptr<Scene> scene_;
     std::unique_ptr<Hierarchy> hierarchy_;
     std::vector<Link> links_;
+    std::vector<ConvolutionLink> convLinks_;
     RadianceField field_;
     Report report_;
     int threads_ = 1;

@@ -36,7 +36,14 @@ std::vector<double> faceThickness(const Scene& sc) {
 
 }  // namespace
 
-RadianceField::RadianceField(const Hierarchy& h) {
+RadianceField::RadianceField(const Hierarchy& h) { init(h, nullptr); }
+
+RadianceField::RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv)
+    : conv_(std::move(conv)) {
+    init(h, textured.size() == h.size() ? &textured : nullptr);
+}
+
+void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured) {
     const Scene& sc = h.scene();
     diagonal_ = sc.diagonal;
     // A point handed in lies on its own surface up to float32 rounding of the caller's coordinates
@@ -87,6 +94,8 @@ RadianceField::RadianceField(const Hierarchy& h) {
         l.support.extend(l.center - ext);
         l.support.extend(l.center + ext);
         l.value = (e.B - p.emission) / M_PI;
+        if (textured) l.value = vmax(Rgb{}, l.value - (*textured)[i] / M_PI);
+        l.group = conv_.polygonGroup(e.polygon);
         leaves_.push_back(l);
     }
     std::vector<Bounds> boxes;
@@ -123,12 +132,19 @@ bool RadianceField::acrossFold(const Leaf& l, const Vec3& d, double off, const V
 }
 
 Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
+    if (conv_.empty()) return smooth(p, n, 0);
+    int group = 0;
+    Rgb detail = conv_.radiance(p, n, &group);
+    return smooth(p, n, group) + detail;
+}
+
+Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group) const {
     Rgb sum;
     double wsum = 0;
     auto containsP = [&](const Bounds& b) { return contains(b, p); };
     supports_.query(containsP, [&](int i) {
         const Leaf& l = leaves_[i];
-        if (!contains(l.support, p)) return;
+        if (l.group != group || !contains(l.support, p)) return;
         double w = weight(l, p, n);
         if (w > 0) {
             sum += l.value * w;
@@ -140,8 +156,10 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
     // was too small to keep): take the nearest leaf facing the same way, searching wider boxes. Nearest
     // to the element rather than to its centre, so that a coarse leaf of a parallel surface whose
     // centre happens to be close does not beat the fine leaf the point is over; among leaves equally
-    // near, the closest centre, then the lowest index, so the choice does not depend on rounding.
+    // near, the closest centre, then the lowest index, so the choice does not depend on rounding. A leaf
+    // of the point's own group first; of any group only when there is none.
     const double band = 1e-18 * diagonal_ * diagonal_;
+    for (bool strict : {true, false})
     for (double r = 1e-3 * diagonal_; r <= 4 * diagonal_; r *= 4) {
         Bounds box;
         box.extend(p - Vec3{r, r, r});
@@ -150,7 +168,7 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
         int bestLeaf = -1;
         supports_.query([&](const Bounds& b) { return overlaps(b, box); }, [&](int i) {
             const Leaf& l = leaves_[i];
-            if (dot(l.normal, n) <= 0) return;
+            if ((strict && l.group != group) || dot(l.normal, n) <= 0) return;
             Vec3 d = p - l.center;
             double off = dot(d, l.normal);
             double inPlane = std::sqrt(std::max(0.0, length2(d) - off * off));

@@ -9,6 +9,7 @@
 
 #include "geometry/box_tree.h"
 #include "hierarchy/element.h"
+#include "solve/convolution_link.h"
 
 namespace penumbra {
 
@@ -16,6 +17,9 @@ class RadianceField {
 public:
     RadianceField() = default;
     explicit RadianceField(const Hierarchy& h);
+    // With convolution links: each leaf's value leaves out what its complete textures reflect
+    // (`textured`, per element), and `conv` adds it back point by point, shadow detail included.
+    RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv);
     // p in the scene's recentred coordinates; n the geometric normal of the surface at p.
     Rgb radiance(const Vec3& p, const Vec3& n) const;
     size_t leaves() const { return leaves_.size(); }
@@ -26,12 +30,16 @@ private:
         double g11, g12, g22, det;    // Gram matrix of (e1, e2), for in-plane coordinates
         double planeTol;              // how far off its plane a point of its own surface can be
         double reach;                 // |e1| + |e2|: no corner is further from the centre
-        Rgb value;                    // (B - E) / pi
+        Rgb value;                    // (B - E) / pi, less what convolution links give it
+        int group = 0;                // ConvolutionField's group of its polygon: blends only within it
         Bounds support;
     };
+    void init(const Hierarchy& h, const std::vector<Rgb>* textured);
+    Rgb smooth(const Vec3& p, const Vec3& n, int group) const;  // the blend of the group's leaves
     double weight(const Leaf& l, const Vec3& p, const Vec3& n) const;
     bool acrossFold(const Leaf& l, const Vec3& d, double off, const Vec3& n) const;
 
+    ConvolutionField conv_;
     std::vector<Leaf> leaves_;
     BoxTree supports_;  // over leaves_[i].support
     double diagonal_ = 0;

@@ -57,6 +57,27 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)
     minArea_ = minEdge * minEdge;
     lift_ = 1e-5 * sc.diagonal;
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
+    if (s.convolution) sites_ = std::make_unique<ConvolutionSites>(h, rays, s);
+}
+
+bool Refiner::tryConvolution(int ri, int si) {
+    if (!sites_ || !sites_->receiverCandidate(ri) || !sites_->sourceHasEmitters(si)) return false;
+    // A transfer the standard refiner links at once needs no texture.
+    if (receiverRho(ri) * fluxBound(h_, si, nodeBox(h_, ri)) <= threshold_) return false;
+    ConvolutionLink l;
+    if (!sites_->tryLink(ri, si, l)) return false;
+    std::lock_guard<std::mutex> lock(convMutex_);
+    conv_.push_back(std::move(l));
+    return true;
+}
+
+std::vector<ConvolutionLink> Refiner::convolutionLinks() const {
+    std::lock_guard<std::mutex> lock(convMutex_);
+    std::vector<ConvolutionLink> out = conv_;
+    std::sort(out.begin(), out.end(), [](const ConvolutionLink& a, const ConvolutionLink& b) {
+        return a.receiver != b.receiver ? a.receiver < b.receiver : a.source < b.source;
+    });
+    return out;
 }
 
 void Refiner::keep(const Link& l, std::vector<Link>& out) {
@@ -199,6 +220,7 @@ std::vector<int> Refiner::children(int node, bool receiver) {
 
 void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
                             std::vector<std::pair<int, int>>* defer) {
+    if (tryConvolution(ri, si)) return;
     auto recurse = [&](int r, int s) {
         if (defer)
             defer->push_back({r, s});
@@ -250,7 +272,10 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     // meet the source through the exact form factor.
     double sizeR = length(rb.diagonal()), sizeS = length(sb.diagonal());
     if (!isClusterNode(si)) canS = false;
-    if (canR && (!canS || notSmaller(sizeR, sizeS))) {
+    // A receiver that could take a convolution link is kept whole while the source is narrowed down
+    // to its emitters (the paper's choice of source refinement before receiver refinement).
+    bool keepReceiver = canS && sites_ && sites_->receiverCandidate(ri) && sites_->sourceHasEmitters(si);
+    if (canR && !keepReceiver && (!canS || notSmaller(sizeR, sizeS))) {
         for (int a : children(ri, true)) recurse(a, si);
     } else {
         for (int b : children(si, false)) recurse(ri, b);
@@ -325,6 +350,7 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
 }
 
 void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
+    if (tryConvolution(ri, si)) return;
     Link l;
     if (!estimateUnoccluded(ri, si, l)) return;
     bool canR = canSplit(ri), canS = canSplit(si);

@@ -5,10 +5,13 @@
 // between two elements it is the spread of the exact point-to-polygon form factor.
 #pragma once
 #include <atomic>
+#include <memory>
+#include <mutex>
 #include <utility>
 #include <vector>
 
 #include "hierarchy/element.h"
+#include "refine/convolution_site.h"
 #include "solve/link.h"
 #include "solve/settings.h"
 #include "util/progress.h"
@@ -37,6 +40,10 @@ public:
     double linkError(const Link& l) const;
     double threshold() const { return threshold_; }
     const RefineStats& stats() const { return stats_; }
+    // Convolution links made so far, in (receiver, source) order; they stand for whole transfers and
+    // are never re-judged, so each pair appears once over all passes.
+    std::vector<ConvolutionLink> convolutionLinks() const;
+    const ConvolutionSites* convolutionSites() const { return sites_.get(); }
 
 private:
     std::vector<Link> linkFacePairs(Progress* progress);
@@ -60,6 +67,9 @@ private:
     void estimateVisibility(int r, int s, Link& l);
     bool canSplit(int e) const;
     void keep(const Link& l, std::vector<Link>& out);  // appends, within settings_.maxLinks
+    // Fig. 4: a significant transfer onto a large planar receiver through blockers becomes one
+    // convolution link; true when it did.
+    bool tryConvolution(int r, int s);
 
     Hierarchy& h_;
     const RayCaster& rays_;
@@ -70,6 +80,9 @@ private:
     int strata_;   // visibility rays = strata_^2
     RefineStats stats_;
     std::atomic<size_t> linkCount_{0};  // links in the list being built
+    std::unique_ptr<ConvolutionSites> sites_;  // null with convolution off
+    mutable std::mutex convMutex_;
+    std::vector<ConvolutionLink> conv_;
 };
 
 }  // namespace penumbra

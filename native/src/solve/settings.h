@@ -14,6 +14,13 @@ struct Settings {
     int refinePasses = 3;        // refine -> solve rounds (later passes refine with indirect light)
     int threads = 0;             // 0: all cores
     bool clustering = true;      // refine from one root <-> root cluster link instead of all face pairs
+    // Convolution links (Soler & Sillion 1998, Fig. 4): a large planar receiver lit by a planar emitter
+    // through blockers gets one soft shadow texture instead of a subdivided mesh of standard links.
+    bool convolution = true;
+    double aMin = 0.15;          // smallest receiver for a convolution link: box diagonal / scene diagonal
+    double eMax = 1.0;           // largest blocker error E_rr of a convolution link, in texels of half the narrowest penumbra
+    double tMax = 0.05;          // largest predicted FFT time of one convolution link, seconds
+    int maxTexture = 512;        // largest soft shadow texture, texels per side
     // Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,
     // instead of being killed by the system (or, for face pairs, running for hours).
     size_t maxElements = 2000000;    // quadtree elements, ~400 bytes each at the peak (canonicalize)

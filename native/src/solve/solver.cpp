@@ -48,6 +48,7 @@ void Solver::gather(const std::vector<Link>& links) {
             re.irradiance = sum;
         }
     });
+    if (textures_ && convLinks_) textures_->gather(h_, *convLinks_, resolveThreads(settings_.threads));
 }
 
 void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>& down) const {

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "hierarchy/element.h"
+#include "solve/convolution_link.h"
 #include "solve/link.h"
 #include "solve/settings.h"
 #include "util/progress.h"
@@ -23,6 +24,12 @@ public:
     Solver(Hierarchy& h, const Settings& s) : h_(h), settings_(s) {}
     // `links` must be sorted by receiver. Radiosities already in the hierarchy are the start value.
     SolveResult solve(const std::vector<Link>& links, Progress* progress);
+    // Convolution links and their complete textures for the current subdivision (both must outlive
+    // the solve); leaves gather them after the standard links.
+    void setConvolution(const std::vector<ConvolutionLink>* links, const CompleteTextures* textures) {
+        convLinks_ = links;
+        textures_ = textures;
+    }
 
 private:
     // One gather (irradiance from links) followed by one push/pull; returns the L1 change of B.
@@ -40,6 +47,8 @@ private:
     std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
     std::vector<std::pair<size_t, size_t>> clusterLinks_;  // link range of each receiving cluster
     double lastReflected_ = 0;
+    const std::vector<ConvolutionLink>* convLinks_ = nullptr;
+    const CompleteTextures* textures_ = nullptr;
 };
 
 }  // namespace penumbra

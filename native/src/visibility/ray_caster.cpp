@@ -68,6 +68,15 @@ bool RayCaster::shaftIsClear(const Bounds& a, const Bounds& b, int skipA, int sk
     return clear;
 }
 
+std::vector<int> RayCaster::occludersInShaft(const Shaft& shaft) const {
+    std::vector<int> out;
+    occluders_.query([&](const Bounds& node) { return shaft.classify(node) != Shaft::Outside; },
+                     [&](int i) {
+                         if (shaft.classify(occluders_.box(i)) != Shaft::Outside) out.push_back(occluderPolygon_[i]);
+                     });
+    return out;
+}
+
 bool RayCaster::occluded(const Vec3& from, const Vec3& to) const {
     if (numTriangles_ == 0) return false;
     RTCIntersectContext ctx;

@@ -6,6 +6,7 @@
 
 #include "geometry/box_tree.h"
 #include "scene/scene.h"
+#include "visibility/shaft.h"
 
 namespace penumbra {
 
@@ -25,6 +26,9 @@ public:
     // True when no occluding polygon other than the two named ones can cross the shaft between the
     // boxes (Haines-Wallace): every segment between them is then unblocked without casting a ray.
     bool shaftIsClear(const Bounds& a, const Bounds& b, int skipPolygonA, int skipPolygonB) const;
+
+    // Occluding polygons whose boxes the shaft does not classify Outside (the caller tests further).
+    std::vector<int> occludersInShaft(const Shaft& shaft) const;
 
 private:
     RTCDevice device_ = nullptr;

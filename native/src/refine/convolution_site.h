@@ -1,0 +1,61 @@
+// The convolution branch of the refiner (Soler & Sillion 1998, §5.2 and Fig. 4): decides whether a
+// source/receiver pair is served by one convolution link instead of standard refinement. The tests
+// run in order of cost, and any that fails hands the pair back to the standard refiner:
+//   1. the transfer is significant (its bound exceeds epsilon: the caller checks);
+//   2. the receiver is planar and its box at least a_min of the scene's diagonal; the source is a
+//      planar group of emitting faces turned toward it;
+//   3. blockers stand in the shaft between the two boxes (Haines-Wallace), and every occluder in the
+//      shaft is either such a blocker or lies on or behind the source's or the receiver's plane;
+//   4. the convolution's blocker error E_rr, with up to n_max sub-blockers, is at most e_max;
+//   5. its predicted FFT time (2 + 2N) C n^2 log n is at most t_max.
+// Receivers are planar, so the shadows a convolution cannot see (inside the receiver, §4.1) do not
+// exist; an occluder that reaches into the receiver's or the source's box refuses the link rather than
+// leak light through it.
+#pragma once
+#include <atomic>
+#include <string>
+#include <vector>
+
+#include "hierarchy/element.h"
+#include "solve/convolution_link.h"
+#include "solve/settings.h"
+#include "visibility/ray_caster.h"
+
+namespace penumbra {
+
+struct ConvolutionStats {
+    std::atomic<size_t> tried{0};        // pairs that reached the blocker selection
+    std::atomic<size_t> noBlocker{0};    // shaft held no blocker: standard links are cheap there
+    std::atomic<size_t> intruder{0};     // an occluder reaches into the source's or receiver's box
+    std::atomic<size_t> invalid{0};      // depth order or geometry the convolution cannot take
+    std::atomic<size_t> tooCoarse{0};    // E_rr > e_max
+    std::atomic<size_t> tooSlow{0};      // predicted time > t_max
+    std::atomic<size_t> made{0};
+    std::atomic<double> seconds{0};      // spent computing textures
+};
+
+class ConvolutionSites {
+public:
+    ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s);
+    // Cheap tests (2.): could r receive a convolution link at all, could s send one.
+    bool receiverCandidate(int r) const;
+    bool sourceHasEmitters(int s) const;
+    // Tests 2-5 for the pair; on success fills `out`, texture computed.
+    bool tryLink(int r, int s, ConvolutionLink& out);
+    const ConvolutionStats& stats() const { return stats_; }
+
+private:
+    bool planarCluster(int c) const { return planar_[size_t(c)]; }
+    void nodePolygons(int node, std::vector<int>& out) const;
+
+    const Hierarchy& h_;
+    const RayCaster& rays_;
+    Settings settings_;
+    double tol_;
+    std::vector<char> planar_;       // per cluster: all its polygons share one plane
+    std::vector<char> hasEmitter_;   // per cluster: some polygon below emits
+    std::vector<char> emitterGroup_; // per cluster: every polygon below that sends light emits, on one plane
+    ConvolutionStats stats_;
+};
+
+}  // namespace penumbra

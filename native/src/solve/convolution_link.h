@@ -1,0 +1,82 @@
+// Convolution links (Soler & Sillion 1998, §3-4): the whole transfer from a planar group of emitting
+// faces S to a planar receiver R, with the shadows of the blockers between them held in one
+// SoftShadowTexture V. At a receiver point y the link delivers
+//     I(y) = V(y) * sum over source faces f of B_f * F(y <- f)
+// with F Lambert's exact unoccluded point-to-polygon form factor and V looked up by central projection
+// from the source centre. Nothing is meshed for it: the receiver keeps the elements its other links
+// need, and the shadow's detail lives in the texture.
+//
+// Gather and push/pull (§4.1-4.2): a CompleteTexture at every leaf below the receiver holds the leaf's
+// mean of F * V per source face, so the leaf gathers sum B_f * mean and the energy balance (what the
+// leaf reflects onward, what is pulled up) sees the shadow. The display (§4.3) draws the leaf's
+// radiosity less that mean, plus rho * I(y) / pi evaluated at every point: ConvolutionField.
+#pragma once
+#include <memory>
+#include <vector>
+
+#include "convolution/soft_shadow.h"
+#include "geometry/box_tree.h"
+#include "hierarchy/element.h"
+
+namespace penumbra {
+
+struct ConvolutionLink {
+    int receiver = -1;                 // node: a polygon's root element or a planar cluster
+    int source = -1;                   // node: a polygon's root element or a cluster of coplanar emitters
+    std::vector<int> receiverPolygons; // faces lit through the link, ascending
+    std::vector<int> sourcePolygons;   // emitting faces turned toward the receiver, ascending
+    std::shared_ptr<const SoftShadowTexture> texture;
+    int blockerTriangles = 0;
+    double error = 0;                  // E_rr, in texels of half the narrowest penumbra (what e_max bounds)
+};
+
+// Unoccluded irradiance per unit radiosity from each source face at y (normal n), times V(y).
+// `out` has one entry per source face.
+void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y, const Vec3& n, double* out);
+
+// The leaves' share of every convolution link, for the current subdivision.
+class CompleteTextures {
+public:
+    CompleteTextures() = default;
+    CompleteTextures(const Hierarchy& h, const std::vector<ConvolutionLink>& links, int threads);
+    bool empty() const { return entries_.empty(); }
+    // Adds each leaf's irradiance from the links, with the sources' current radiosities.
+    void gather(Hierarchy& h, const std::vector<ConvolutionLink>& links, int threads) const;
+    // rho * (what the links give each element) with current radiosities; zero off the links.
+    std::vector<Rgb> reflected(const Hierarchy& h, const std::vector<ConvolutionLink>& links) const;
+
+private:
+    struct Entry {
+        int leaf, link;
+        size_t factors;  // index of the first of the link's source faces' mean factors
+    };
+    std::vector<Entry> entries_;       // sorted by leaf
+    std::vector<size_t> leafStart_;    // runs of entries_ with one leaf
+    std::vector<double> factors_;
+};
+
+// rho * I(y) / pi at any point of a receiver: the texture's detail, added to the smooth field. Faces
+// lit by the same set of links form a group; the smooth field blends leaves of one group only, since a
+// face whose direct light comes from a texture holds none of it in its leaves.
+class ConvolutionField {
+public:
+    ConvolutionField() = default;
+    ConvolutionField(const Hierarchy& h, const std::vector<ConvolutionLink>& links);
+    bool empty() const { return links_.empty(); }
+    int polygonGroup(int polygon) const { return polyGroup_.empty() ? 0 : polyGroup_[size_t(polygon)]; }
+    // The links' radiance at p (on the lowest-numbered receiver face holding it, so a point on an edge
+    // counts once), and that face's group in `group` (0 off every receiver).
+    Rgb radiance(const Vec3& p, const Vec3& n, int* group) const;
+
+private:
+    const Scene* scene_ = nullptr;
+    std::vector<ConvolutionLink> links_;
+    std::vector<std::vector<Rgb>> sourceB_;  // per link, per source face
+    std::vector<int> polyGroup_;             // per scene polygon: 0, or 1 + index into groups_
+    std::vector<std::vector<int>> groups_;   // links of each group, ascending
+    std::vector<int> covered_;               // receiver faces, one entry each
+    BoxTree boxes_;                          // over covered_, padded by tol_
+    double tol_ = 0;
+};
+
+}  // namespace penumbra

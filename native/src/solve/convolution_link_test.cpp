@@ -1,0 +1,218 @@
+#include "solve/convolution_link.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include "geometry/form_factor.h"
+#include "penumbra.h"
+#include "testing/scenes.h"
+
+namespace penumbra {
+namespace {
+
+// Parallel planes (the case where the convolution is exact): a square lamp of side 0.5 facing down at
+// z = 2, a black square blocker of side `blocker` at z = 1, and a white floor 4 x 4 m at z = 0 cut
+// into 4 x 4 faces. Nothing but the floor reflects, so the floor's radiance is direct light only.
+constexpr double kLamp = 0.25, kH = 2.0, kBlockerZ = 1.0, kE = 10.0, kRho = 0.5;
+
+testing::TestScene parallelPlanes(double blocker, bool pillar = false) {
+    testing::TestScene t;
+    t.names = {"Floor", "Blocker", "Lamp", "Pillar"};
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            double x0 = -2 + i, y0 = -2 + j;
+            t.quad({x0, y0, 0}, {x0 + 1, y0, 0}, {x0 + 1, y0 + 1, 0}, {x0, y0 + 1, 0}, {kRho, kRho, kRho}, {}, 0, 0);
+        }
+    double b = blocker / 2;
+    // Faces down toward the floor; black, so it only blocks.
+    t.quad({-b, -b, kBlockerZ}, {-b, b, kBlockerZ}, {b, b, kBlockerZ}, {b, -b, kBlockerZ}, {}, {}, 0, 1);
+    t.quad({-kLamp, -kLamp, kH}, {-kLamp, kLamp, kH}, {kLamp, kLamp, kH}, {kLamp, -kLamp, kH}, {}, {kE, kE, kE}, 0, 2);
+    if (pillar)  // a post through the floor (an object resting on it would be a blocker)
+        t.box({0.9, 0.9, -0.5}, {1.0, 1.0, 1.5}, {}, {}, false, 3);
+    return t;
+}
+
+Polygon rect(double x0, double y0, double x1, double y1, double z) {
+    Polygon p;
+    p.push({x0, y0, z});
+    p.push({x0, y1, z});
+    p.push({x1, y1, z});
+    p.push({x1, y0, z});
+    return p;
+}
+
+// The part of the lamp the blocker hides from floor point (x, y): the blocker projected from the point
+// onto the lamp's plane, clipped to the lamp (an axis-aligned rectangle, empty when x1 <= x0).
+struct Hidden {
+    double x0, y0, x1, y1;
+    bool empty() const { return !(x1 > x0 && y1 > y0); }
+};
+Hidden hiddenPart(double x, double y, double blocker) {
+    double k = kH / kBlockerZ, b = blocker / 2;
+    return {std::max(-kLamp, x + (-b - x) * k), std::max(-kLamp, y + (-b - y) * k),
+            std::min(kLamp, x + (b - x) * k), std::min(kLamp, y + (b - y) * k)};
+}
+
+// Exact irradiance per unit lamp radiosity at floor point (x, y): the lamp's form factor less that of
+// the part of it the blocker hides.
+double exactVisibleFormFactor(double x, double y, double blocker) {
+    Vec3 up{0, 0, 1}, p{x, y, 0};
+    double full = pointToPolygonFormFactor(p, up, rect(-kLamp, -kLamp, kLamp, kLamp, kH));
+    Hidden h = hiddenPart(x, y, blocker);
+    return full - (h.empty() ? 0.0 : pointToPolygonFormFactor(p, up, rect(h.x0, h.y0, h.x1, h.y1, kH)));
+}
+
+// What a convolution link computes by construction (Soler & Sillion's model): the unoccluded form factor
+// times the visible fraction of the lamp's area. It differs from the exact value where the hidden part of
+// the lamp is nearer or farther than the rest (the kernel varies by ~15 % across this lamp).
+double modelFormFactor(double x, double y, double blocker) {
+    Vec3 up{0, 0, 1}, p{x, y, 0};
+    double full = pointToPolygonFormFactor(p, up, rect(-kLamp, -kLamp, kLamp, kLamp, kH));
+    Hidden h = hiddenPart(x, y, blocker);
+    double hiddenArea = h.empty() ? 0.0 : (h.x1 - h.x0) * (h.y1 - h.y0);
+    return full * (1 - hiddenArea / (4 * kLamp * kLamp));
+}
+
+struct Grid {
+    std::vector<float> points, normals;
+    std::vector<double> exact, model;
+};
+
+Grid floorGrid(double blocker, int n) {
+    Grid g;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            double x = -1.6 + 3.2 * (i + 0.5) / n, y = -1.6 + 3.2 * (j + 0.5) / n;
+            g.points.insert(g.points.end(), {float(x), float(y), 0.0f});
+            g.normals.insert(g.normals.end(), {0.0f, 0.0f, 1.0f});
+            g.exact.push_back(kRho * kE * exactVisibleFormFactor(x, y, blocker) / M_PI);
+            g.model.push_back(kRho * kE * modelFormFactor(x, y, blocker) / M_PI);
+        }
+    return g;
+}
+
+TEST(ConvolutionLink, ParallelPlanesMatchExactVisibility) {
+    const double blocker = 0.6;
+    auto scene = parallelPlanes(blocker);
+    Settings s;
+    auto sol = solve(scene.input(), s, nullptr);
+    ASSERT_GE(sol->report().convolutionLinks, 1u);
+    // The floor (all 16 faces) takes one texture from the lamp.
+    bool wholeFloor = false;
+    for (const ConvolutionLink& l : sol->convolutionLinks())
+        wholeFloor |= l.receiverPolygons.size() == 16 && l.texture->subBlockers == 1;
+    EXPECT_TRUE(wholeFloor);
+
+    Grid g = floorGrid(blocker, 40);
+    std::vector<float> got = sol->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    double peak = *std::max_element(g.exact.begin(), g.exact.end());
+    // Against the model: the texture's own accuracy, the issue-4 bounds (max 0.02, mean 0.005 of the
+    // light), now through the whole solve and reconstruction. Against the exact irradiance: the
+    // model's approximation on top, stated as measured (worst 4.4 % of the peak, mean 0.6 %).
+    for (const auto* ref : {&g.model, &g.exact}) {
+        double worst = 0, mean = 0;
+        size_t at = 0;
+        for (size_t i = 0; i < ref->size(); ++i) {
+            double err = std::fabs(got[i * 3] - (*ref)[i]) / peak;
+            if (err > worst) at = i;
+            worst = std::max(worst, err);
+            mean += err / ref->size();
+        }
+        bool model = ref == &g.model;
+        SCOPED_TRACE(std::string(model ? "model" : "exact") + ", worst at " + std::to_string(g.points[at * 3]) +
+                     ", " + std::to_string(g.points[at * 3 + 1]) + ": " + std::to_string(got[at * 3]) + " for " +
+                     std::to_string((*ref)[at]));
+        std::printf("against the %s: worst %.4f, mean %.4f of the peak\n", model ? "model" : "exact", worst, mean);
+        EXPECT_LE(worst, model ? 0.02 : 0.05);
+        EXPECT_LE(mean, model ? 0.005 : 0.0075);
+    }
+    // The umbra below the blocker's centre is dark and the far floor is lit (a check on the test itself).
+    EXPECT_LT(exactVisibleFormFactor(0, 0, blocker), 1e-12);
+    EXPECT_GT(peak, 0.5 * kRho * kE / M_PI * (4 * kLamp * kLamp) / (M_PI * kH * kH));
+}
+
+TEST(ConvolutionLink, SkipsTheShadowMeshStandardRefinementBuilds) {
+    // Standard refinement meshes the floor down to the penumbra; with the convolution link the floor's
+    // faces stay whole and the shadow lives in the texture.
+    auto scene = parallelPlanes(0.6);
+    Settings on, off;
+    off.convolution = false;
+    auto a = solve(scene.input(), on, nullptr);
+    auto b = solve(scene.input(), off, nullptr);
+    EXPECT_EQ(b->report().convolutionLinks, 0u);
+    EXPECT_LT(a->report().elements * 4, b->report().elements)
+        << a->report().elements << " elements with the convolution link, " << b->report().elements << " without";
+    EXPECT_LT(a->report().rays * 4, b->report().rays);
+}
+
+TEST(ConvolutionLink, AnOccluderReachingIntoTheReceiverRefusesTheLink) {
+    // A post through the floor is not a blocker the convolution may take (it reaches into the floor's
+    // box): the whole-floor link is refused rather than lit through the post. Faces whose shafts miss
+    // the post still get links and match the exact answer; the rest are refined as without convolution.
+    auto scene = parallelPlanes(0.6, true);
+    auto sol = solve(scene.input(), Settings{}, nullptr);
+    Settings off;
+    off.convolution = false;
+    auto standard = solve(scene.input(), off, nullptr);
+    std::vector<char> covered(16, 0);
+    for (const ConvolutionLink& l : sol->convolutionLinks()) {
+        EXPECT_LT(l.receiverPolygons.size(), 16u);
+        for (int p : l.receiverPolygons) covered[size_t(p)] = 1;
+    }
+    EXPECT_GE(sol->report().convolutionRefused.at("intruder"), 1u);
+    EXPECT_TRUE(std::count(covered.begin(), covered.end(), 1) > 0);
+    EXPECT_FALSE(covered[10]);  // the face the post stands in
+    Grid g = floorGrid(0.6, 20);
+    std::vector<float> got = sol->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    std::vector<float> std_ = standard->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    double peak = *std::max_element(g.exact.begin(), g.exact.end());
+    for (size_t i = 0; i < g.exact.size(); ++i) {
+        double x = g.points[i * 3], y = g.points[i * 3 + 1];
+        int face = int(std::floor(x + 2)) * 4 + int(std::floor(y + 2));
+        if (covered[size_t(face)])  // the bound of the whole-floor link (ParallelPlanes...)
+            EXPECT_NEAR(got[i * 3], g.exact[i], 0.05 * peak) << "at " << x << ", " << y;
+        else
+            EXPECT_NEAR(got[i * 3], std_[i * 3], 0.01 * peak) << "at " << x << ", " << y;
+    }
+}
+
+TEST(ConvolutionLink, BitIdenticalForAnyThreadCount) {
+    auto scene = parallelPlanes(0.6);
+    Settings one, two;
+    one.threads = 1;
+    two.threads = 2;
+    auto a = solve(scene.input(), one, nullptr);
+    auto b = solve(scene.input(), two, nullptr);
+    ASSERT_GE(a->report().convolutionLinks, 1u);
+    Grid g = floorGrid(0.6, 16);
+    std::vector<float> ra = a->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    std::vector<float> rb = b->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    EXPECT_EQ(ra, rb);
+}
+
+TEST(ConvolutionLink, EnergyBalanceSeesTheShadow) {
+    // The floor's leaves gather the links' means: the flux the floor reflects equals the integral of
+    // the exact irradiance over it (to the texture's accuracy), shadow subtracted.
+    const double blocker = 0.6;
+    auto sol = solve(parallelPlanes(blocker).input(), Settings{}, nullptr);
+    ASSERT_GE(sol->report().convolutionLinks, 1u);
+    const Hierarchy& h = sol->hierarchy();
+    double reflected = 0;
+    for (size_t i = 0; i < h.numRoots(); ++i)
+        if (h.scene().polygons[i].object == 0) reflected += h[i].B.x * h[i].area;
+    // Midpoint rule on a fine grid over the 4 x 4 m floor.
+    double exact = 0;
+    const int n = 200;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            double x = -2 + 4.0 * (i + 0.5) / n, y = -2 + 4.0 * (j + 0.5) / n;
+            exact += kRho * kE * exactVisibleFormFactor(x, y, blocker) * (16.0 / (n * n));
+        }
+    EXPECT_NEAR(reflected, exact, 0.01 * exact);
+}
+
+}  // namespace
+}  // namespace penumbra
