@@ -57,10 +57,12 @@ def test_scale_and_offset_invariance(empty_scene, penumbra, label, matrix):
     rel = float(np.sqrt(((m - b) ** 2).sum() / (b ** 2).sum()))
     worst = float((np.abs(m - b).max(axis=1) / np.maximum(b.max(axis=1), 1e-3 * b.max())).max())
     print(f"{label}: relative RMS difference {rel:.2e}, worst face {worst:.2e}, {rep['elements']} elements")
-    assert rel <= 1e-3
-    # The issue's bound is on the whole bake; single faces differ more where a refinement decision flips
-    # (3.6 % on one face at 1e-3 scale, where the element count changes slightly).
-    assert worst <= 5e-2
+    # The issue asks for 1e-3 on the whole bake. Size ties in the refiner and the cluster tree are decided
+    # with a relative tolerance, so no refinement decision flips with the rounding of the scaled
+    # coordinates: measured 4e-8 RMS and 2.5e-7 on the worst face (1.01e-3 and 6 % before), guarded here
+    # a hundred times above that.
+    assert rel <= 1e-5
+    assert worst <= 1e-4
 
 
 def closed_box(name, lo, hi, material, inward=True, divisions=(2, 2, 2)):
