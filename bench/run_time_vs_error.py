@@ -40,13 +40,13 @@ PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.0
 # Each setting runs twice: standard refinement only, and hybrid with convolution links (the default).
 METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True})]
 CYCLES_SAMPLES = [4, 16, 64, 256]
-RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128}
+RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128}
 
 
 def parse_args():
     argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
     ap = argparse.ArgumentParser(prog="run_time_vs_error.py")
-    ap.add_argument("--scenes", default="cornell,office,blockers")
+    ap.add_argument("--scenes", default="cornell,office,blockers,lattice")
     ap.add_argument("--out", default=os.path.join(REPO, "docs"))
     ap.add_argument("--cache", default=os.path.join(HERE, "cache"))
     ap.add_argument("--ref-samples", type=int, default=1024)

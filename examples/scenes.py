@@ -6,6 +6,9 @@
 
 - blockers: a 4 m x 4 m floor under one square area light, with a 4 x 4 grid of floating cubes at two heights
   and a table (top and four thin legs) whose shadows overlap: many small blockers at different distances.
+- lattice: the same floor and light with a perforated shade in between: 8 x 8 thin tiles (2 cm) at 1.2 m whose
+  overlapping penumbrae make a detailed soft shadow over the whole floor; the case convolution links are for
+  (one flat-ish blocker far from a large receiver), where standard refinement has to mesh every penumbra.
 - office: a 6 m x 4.5 m x 3 m closed room lit by two area lights under the ceiling, with four desks, four chairs
   and a bookcase, in the spirit of the office scene of Soler and Sillion's Fig. 6. About 830 polygons; the
   figures in docs/benchmark.md were measured on it, so it stays as it is.
@@ -26,7 +29,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cornell_box  # noqa: E402
 
-SCENES = ("cornell", "office", "office5k", "blockers", "scalable")
+SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable")
 
 
 def _diffuse(name, color):
@@ -125,6 +128,25 @@ def build_blockers(scene=None):
         for y in (0.95, 1.6):
             table.box((x, y, 0.0), (x + 0.05, y + 0.05, 0.6), bottom=False)
     obs["Table"] = table.build("Table", [_diffuse("TableWood", (0.55, 0.4, 0.25))], scene)
+    obs["Light"] = _area_light("Light", 1.0, 400.0, (0.0, 0.0, 2.5), scene=scene)
+    obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
+    _black_world(scene)
+    return obs
+
+
+def build_lattice(scene=None):
+    scene = scene or bpy.context.scene
+    obs = {}
+    floor = MeshBuilder()
+    floor.grid((-2, -2, 0), (4, 0, 0), (0, 4, 0), 16, 16)
+    obs["Floor"] = floor.build("Floor", [_diffuse("LatticeFloor", (0.7, 0.7, 0.7))], scene)
+    shade = MeshBuilder()
+    pitch, tile, z = 0.3, 0.18, 1.2
+    for i in range(8):
+        for j in range(8):
+            x, y = (i - 3.5) * pitch, (j - 3.5) * pitch
+            shade.box((x - tile / 2, y - tile / 2, z), (x + tile / 2, y + tile / 2, z + 0.02))
+    obs["Shade"] = shade.build("Shade", [_diffuse("LatticeShade", (0.5, 0.5, 0.5))], scene)
     obs["Light"] = _area_light("Light", 1.0, 400.0, (0.0, 0.0, 2.5), scene=scene)
     obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
     _black_world(scene)
@@ -233,6 +255,8 @@ def build(name, scene=None, polygons=5000):
         return scalable_scene.build_bpy(polygons, scene)
     if name == "blockers":
         return build_blockers(scene)
+    if name == "lattice":
+        return build_lattice(scene)
     raise ValueError(f"unknown scene {name!r}; known: {', '.join(SCENES)}")
 
 

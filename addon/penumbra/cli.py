@@ -83,6 +83,16 @@ def parser():
     ap.add_argument("--threads", type=_ranged(int, 0, 1024), metavar="N", help="solver threads (0: all cores)")
     ap.add_argument("--clustering", action=argparse.BooleanOptionalAction, default=None,
                     help="group faces into clusters (default: on, or the file's setting)")
+    ap.add_argument("--convolution", action=argparse.BooleanOptionalAction, default=None,
+                    help="shadow textures by convolution where they are accurate enough (default: on)")
+    ap.add_argument("--a-min", type=_ranged(float, 0.0, 1.0), metavar="X",
+                    help="smallest receiver for a shadow texture, relative to the scene's diagonal")
+    ap.add_argument("--e-max", type=_ranged(float, 0.01, 100.0), metavar="X",
+                    help="largest blocker error of a shadow texture, in half the narrowest penumbra")
+    ap.add_argument("--t-max", type=_ranged(float, 1e-4, 60.0), metavar="SECONDS",
+                    help="longest predicted FFT time of one shadow texture")
+    ap.add_argument("--max-texture", type=_ranged(int, 16, 4096), metavar="N",
+                    help="largest shadow texture, texels per side")
     ap.add_argument("--save", metavar="FILE.blend",
                     help="save the baked .blend here (default: DIR/baked.blend; 'none' to skip)")
     ap.add_argument("--scene", help="scene name (default: the active scene)")
@@ -96,7 +106,8 @@ def settings_from(panel, args):
     if args.quality:
         s.update(PRESETS[args.quality.upper()])
     for key in ("resolution", "margin", "uv_map", "selection_only", "epsilon", "min_size", "visibility_rays",
-                "max_iterations", "tolerance", "refine_passes", "threads", "clustering"):
+                "max_iterations", "tolerance", "refine_passes", "threads", "clustering", "convolution", "a_min",
+                "e_max", "t_max", "max_texture"):
         v = getattr(args, key)
         if v is not None:
             s[key] = v

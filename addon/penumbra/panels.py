@@ -119,6 +119,23 @@ class _Advanced:
         col.prop(s, "refine_passes")
         col.prop(s, "threads")
         col.prop(s, "clustering")
+        col = layout.column(heading="Shadow Textures")
+        col.prop(s, "convolution", text="")
+        sub = col.column()
+        sub.active = s.convolution
+        sub.prop(s, "a_min")
+        sub.prop(s, "e_max")
+        sub.prop(s, "t_max")
+        sub.prop(s, "max_texture")
+
+
+def _textures(report):
+    """Convolution links made, and how many candidate pairs were left to ordinary refinement."""
+    made = report.get("convolution_links")
+    if not isinstance(made, int):
+        return "?"
+    tried = report.get("convolution_tried", 0) or 0
+    return f"{made} of {tried} tried" if tried else f"{made}"
 
 
 class _Report:
@@ -147,6 +164,7 @@ class _Report:
                 ("Elements", f"{report.get('elements', '?'):,}" if isinstance(report.get('elements'), int)
                  else "?"),
                 ("Links", f"{report.get('links', '?'):,}" if isinstance(report.get('links'), int) else "?"),
+                ("Shadow textures", _textures(report)),
                 ("Iterations", f"{report.get('iterations', '?')}"),
                 ("Residual", f"{report['residual']:.2e}" if isinstance(report.get("residual"), (int, float))
                  else "?")]

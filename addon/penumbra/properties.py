@@ -128,6 +128,30 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         description="Group faces into clusters so that distant groups exchange light as one. Much faster on "
                     "scenes with many faces; off compares every face with every other face first",
         default=True)
+    convolution: BoolProperty(
+        name="Shadow Textures",
+        description="Let large flat surfaces lit by a flat light through objects take their shadow as one "
+                    "texture computed by convolution (Soler & Sillion) instead of a mesh cut finely along the "
+                    "penumbra. Used only where the texture meets the error and time limits below",
+        default=True)
+    a_min: FloatProperty(
+        name="Min Receiver Size",
+        description="Smallest surface (its bounding-box diagonal, as a fraction of the scene's) that may take a "
+                    "shadow texture. Smaller lets more surfaces take one, at more textures",
+        default=0.15, min=0.0, max=1.0, precision=3, step=1)
+    e_max: FloatProperty(
+        name="Max Blocker Error",
+        description="How far a shadow texture may misplace a penumbra because its blockers are thick, in units "
+                    "of half the narrowest penumbra. Larger accepts more textures and less exact shadows",
+        default=1.0, min=0.01, max=100.0, precision=2, step=10)
+    t_max: FloatProperty(
+        name="Max Texture Time",
+        description="Longest predicted time for one shadow texture's FFTs, in seconds; a texture predicted to "
+                    "take longer is left to the ordinary refinement", default=0.05, min=1e-4, max=60.0,
+        precision=3, step=1, subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE")
+    max_texture: IntProperty(
+        name="Max Texture Size",
+        description="Largest shadow texture, in texels per side", default=512, min=16, max=4096)
     last_report: StringProperty(
         name="Last Report", description="The last successful bake's report (JSON), saved with the file",
         default="", options={"HIDDEN"})
@@ -140,7 +164,8 @@ class PenumbraSettings(bpy.types.PropertyGroup):
                 "output_dir": self.output_dir or None, "epsilon": self.epsilon, "min_size": self.min_size,
                 "visibility_rays": self.visibility_rays, "max_iterations": self.max_iterations,
                 "tolerance": self.tolerance, "refine_passes": self.refine_passes, "threads": self.threads,
-                "clustering": self.clustering}
+                "clustering": self.clustering, "convolution": self.convolution, "a_min": self.a_min,
+                "e_max": self.e_max, "t_max": self.t_max, "max_texture": self.max_texture}
 
     def report(self):
         try:
