@@ -107,12 +107,24 @@ def _black_world(scene):
     scene.world = world
 
 
-def build_blockers(scene=None):
-    scene = scene or bpy.context.scene
-    obs = {}
+def _floor(material, scene):
+    """The 4 m x 4 m floor of the blocker and lattice scenes, in 16 x 16 faces."""
     floor = MeshBuilder()
     floor.grid((-2, -2, 0), (4, 0, 0), (0, 4, 0), 16, 16)
-    obs["Floor"] = floor.build("Floor", [_diffuse("FloorWhite", (0.7, 0.7, 0.7))], scene)
+    return floor.build("Floor", [_diffuse(material, (0.7, 0.7, 0.7))], scene)
+
+
+def _light_and_camera(obs, scene):
+    """A 1 m square area light 2.5 m above that floor, the camera looking at it, a black world."""
+    obs["Light"] = _area_light("Light", 1.0, 400.0, (0.0, 0.0, 2.5), scene=scene)
+    obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
+    _black_world(scene)
+    return obs
+
+
+def build_blockers(scene=None):
+    scene = scene or bpy.context.scene
+    obs = {"Floor": _floor("FloorWhite", scene)}
     cubes = MeshBuilder()
     for i in range(4):
         for j in range(4):
@@ -128,18 +140,12 @@ def build_blockers(scene=None):
         for y in (0.95, 1.6):
             table.box((x, y, 0.0), (x + 0.05, y + 0.05, 0.6), bottom=False)
     obs["Table"] = table.build("Table", [_diffuse("TableWood", (0.55, 0.4, 0.25))], scene)
-    obs["Light"] = _area_light("Light", 1.0, 400.0, (0.0, 0.0, 2.5), scene=scene)
-    obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
-    _black_world(scene)
-    return obs
+    return _light_and_camera(obs, scene)
 
 
 def build_lattice(scene=None):
     scene = scene or bpy.context.scene
-    obs = {}
-    floor = MeshBuilder()
-    floor.grid((-2, -2, 0), (4, 0, 0), (0, 4, 0), 16, 16)
-    obs["Floor"] = floor.build("Floor", [_diffuse("LatticeFloor", (0.7, 0.7, 0.7))], scene)
+    obs = {"Floor": _floor("LatticeFloor", scene)}
     shade = MeshBuilder()
     pitch, tile, z = 0.3, 0.18, 1.2
     for i in range(8):
@@ -147,10 +153,7 @@ def build_lattice(scene=None):
             x, y = (i - 3.5) * pitch, (j - 3.5) * pitch
             shade.box((x - tile / 2, y - tile / 2, z), (x + tile / 2, y + tile / 2, z + 0.02))
     obs["Shade"] = shade.build("Shade", [_diffuse("LatticeShade", (0.5, 0.5, 0.5))], scene)
-    obs["Light"] = _area_light("Light", 1.0, 400.0, (0.0, 0.0, 2.5), scene=scene)
-    obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
-    _black_world(scene)
-    return obs
+    return _light_and_camera(obs, scene)
 
 
 def _office_room(W, D, H, faces, prefix, scene):

@@ -305,7 +305,8 @@ def summary(report):
     stages = ", ".join(f"{k} {v:.2f} s" for k, v in t.items())
     return (f"Penumbra: {len(report.get('objects_baked', []))} objects baked; {stages}; "
             f"{report.get('polygons', '?')} polygons, {report.get('elements', '?')} elements, "
-            f"{report.get('links', '?')} links, {report.get('iterations', '?')} iterations, "
+            f"{report.get('links', '?')} links, {report.get('convolution_links', '?')} convolution links "
+            f"(of {report.get('convolution_tried', '?')} tried), {report.get('iterations', '?')} iterations, "
             f"residual {_fmt(report.get('residual'))}")
 
 

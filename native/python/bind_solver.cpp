@@ -181,9 +181,14 @@ void bindSolver(py::module_& m) {
                  py::list out;
                  for (const ConvolutionLink& l : s.convolutionLinks()) {
                      py::dict d;
-                     auto ints = [](const std::vector<int>& v) {
-                         Array<int32_t> a({py::ssize_t(v.size())});
-                         std::copy(v.begin(), v.end(), a.mutable_data());
+                     // Input polygon indices: the scene splits warped quads and skips zero-area faces.
+                     auto ints = [&](const std::vector<int>& v) {
+                         std::vector<int32_t> in;
+                         for (int p : v) in.push_back(s.scene().polygons[size_t(p)].input);
+                         std::sort(in.begin(), in.end());
+                         in.erase(std::unique(in.begin(), in.end()), in.end());
+                         Array<int32_t> a({py::ssize_t(in.size())});
+                         std::copy(in.begin(), in.end(), a.mutable_data());
                          return a;
                      };
                      d["receiver_polygons"] = ints(l.receiverPolygons);
