@@ -54,6 +54,8 @@ def parse_args():
     ap.add_argument("--penumbra-timeout", type=float, default=120.0,
                     help="cancel a Penumbra setting after this many seconds")
     ap.add_argument("--quick", action="store_true", help="64 reference samples, 2 settings each: a smoke run")
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the other scenes' results from <out>/bench_results.json (re-run some scenes only)")
     ap.add_argument("--methods", default="standard,hybrid", help="Penumbra series to run: standard, hybrid")
     ap.add_argument("--hybrid", default="{}", help="JSON of extra solver settings for the hybrid series, "
                                                   "e.g. '{\"e_max\": 4}'")
@@ -376,9 +378,14 @@ def main():
     args = parse_args()
     penumbra = enable_addon()
     os.makedirs(args.out, exist_ok=True)
+    names = args.scenes.split(",")
     results = []
+    saved = os.path.join(args.out, "bench_results.json")
+    if args.keep and os.path.exists(saved):
+        with open(saved) as f:
+            results = [r for r in json.load(f)["results"] if r["scene"] not in names]
     t0 = time.perf_counter()
-    for name in args.scenes.split(","):
+    for name in names:
         r = run_scene(penumbra, name, args)
         results.append(r)
         plot(r, os.path.join(args.out, f"bench_{name}.png"))

@@ -193,12 +193,18 @@ void bindSolver(py::module_& m) {
                      };
                      d["receiver_polygons"] = ints(l.receiverPolygons);
                      d["source_polygons"] = ints(l.sourcePolygons);
-                     const SoftShadowTexture& t = *l.texture;
-                     Array<float> vis({py::ssize_t(t.n), py::ssize_t(t.n)});
-                     std::copy(t.visibility.begin(), t.visibility.end(), vis.mutable_data());
-                     d["visibility"] = vis;
-                     d["resolution"] = t.n;
-                     d["sub_blockers"] = t.subBlockers;
+                     // One texture per part of the source (it is cut into k x k parts), all n x n.
+                     py::list textures;
+                     for (const auto& t : l.textures) {
+                         Array<float> vis({py::ssize_t(t->n), py::ssize_t(t->n)});
+                         std::copy(t->visibility.begin(), t->visibility.end(), vis.mutable_data());
+                         textures.append(vis);
+                     }
+                     d["textures"] = textures;
+                     d["resolution"] = l.textures.front()->n;
+                     int sub = 0;
+                     for (const auto& x : l.textures) sub = std::max(sub, x->subBlockers);
+                     d["sub_blockers"] = sub;
                      d["error"] = l.error;
                      d["blocker_triangles"] = l.blockerTriangles;
                      out.append(d);

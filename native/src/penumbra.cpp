@@ -134,7 +134,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     }));
     rep.convolutionLinks = conv.size();
     for (const ConvolutionLink& l : conv) {
-        rep.convolutionTexels += size_t(l.texture->n) * size_t(l.texture->n);
+        for (const auto& t : l.textures) rep.convolutionTexels += size_t(t->n) * size_t(t->n);
         rep.convolutionMaxError = std::max(rep.convolutionMaxError, l.error);
     }
     if (const ConvolutionSites* cs = refiner.convolutionSites()) {

@@ -26,6 +26,11 @@ void leafSamples(const Element& e, std::vector<Vec3>& pts) {
         pts.push_back(e.center);
 }
 
+// The radiosity of the face a piece was cut from (its root element's, the face's mean).
+const Rgb& pieceB(const Hierarchy& h, const ConvolutionLink& l, size_t k) {
+    return h[size_t(l.sourcePolygons[size_t(l.pieces[k].face)])].B;
+}
+
 void collectLeaves(const Hierarchy& h, int e, std::vector<int>& out) {
     int fc = h.firstChild(e);
     if (fc < 0) {
@@ -38,11 +43,16 @@ void collectLeaves(const Hierarchy& h, int e, std::vector<int>& out) {
 }  // namespace
 
 void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y, const Vec3& n, double* out) {
-    float v = lookupVisibility(*l.texture, y);
-    double vis = std::isfinite(v) ? std::clamp(double(v), 0.0, 1.0) : 0.0;
-    for (size_t k = 0; k < l.sourcePolygons.size(); ++k) {
-        const ScenePolygon& sp = sc.polygons[size_t(l.sourcePolygons[k])];
-        out[k] = vis > 0 && dot(y - sp.geom.v[0], sp.normal) > 0 ? vis * pointToPolygonFormFactor(y, n, sp.geom) : 0.0;
+    std::vector<double> vis(l.textures.size());
+    for (size_t j = 0; j < vis.size(); ++j) {
+        float v = lookupVisibility(*l.textures[j], y);
+        vis[j] = std::isfinite(v) ? std::clamp(double(v), 0.0, 1.0) : 0.0;
+    }
+    for (size_t k = 0; k < l.pieces.size(); ++k) {
+        const SourcePiece& piece = l.pieces[k];
+        const ScenePolygon& sp = sc.polygons[size_t(l.sourcePolygons[size_t(piece.face)])];
+        double v = vis[size_t(piece.part)];
+        out[k] = v > 0 && dot(y - sp.geom.v[0], sp.normal) > 0 ? v * pointToPolygonFormFactor(y, n, piece.geom) : 0.0;
     }
 }
 
@@ -53,7 +63,7 @@ CompleteTextures::CompleteTextures(const Hierarchy& h, const std::vector<Convolu
         for (int p : links[li].receiverPolygons) collectLeaves(h, p, leaves);
         for (int leaf : leaves) {
             entries_.push_back({leaf, int(li), factors_.size()});
-            factors_.resize(factors_.size() + links[li].sourcePolygons.size(), 0.0);
+            factors_.resize(factors_.size() + links[li].pieces.size(), 0.0);
         }
     }
     // Each entry writes only its own factors: the result does not depend on the thread count.
@@ -66,7 +76,7 @@ CompleteTextures::CompleteTextures(const Hierarchy& h, const std::vector<Convolu
             const Element& leaf = h[size_t(en.leaf)];
             const Vec3& n = sc.polygons[size_t(leaf.polygon)].normal;
             leafSamples(leaf, pts);
-            f.assign(l.sourcePolygons.size(), 0.0);
+            f.assign(l.pieces.size(), 0.0);
             double* acc = &factors_[en.factors];
             for (const Vec3& y : pts) {
                 convolutionFactors(sc, l, y, n, f.data());
@@ -89,8 +99,8 @@ void CompleteTextures::gather(Hierarchy& h, const std::vector<ConvolutionLink>& 
             for (size_t i = leafStart_[g]; i < leafStart_[g + 1]; ++i) {
                 const Entry& en = entries_[i];
                 const ConvolutionLink& l = links[size_t(en.link)];
-                for (size_t k = 0; k < l.sourcePolygons.size(); ++k)
-                    sum += h[size_t(l.sourcePolygons[k])].B * factors_[en.factors + k];
+                for (size_t k = 0; k < l.pieces.size(); ++k)
+                    sum += pieceB(h, l, k) * factors_[en.factors + k];
             }
             h[size_t(entries_[leafStart_[g]].leaf)].irradiance += sum;
         }
@@ -102,8 +112,7 @@ std::vector<Rgb> CompleteTextures::reflected(const Hierarchy& h, const std::vect
     for (const Entry& en : entries_) {
         const ConvolutionLink& l = links[size_t(en.link)];
         Rgb sum;
-        for (size_t k = 0; k < l.sourcePolygons.size(); ++k)
-            sum += h[size_t(l.sourcePolygons[k])].B * factors_[en.factors + k];
+        for (size_t k = 0; k < l.pieces.size(); ++k) sum += pieceB(h, l, k) * factors_[en.factors + k];
         const Element& leaf = h[size_t(en.leaf)];
         out[size_t(en.leaf)] += mul(h.scene().polygons[size_t(leaf.polygon)].rho, sum);
     }
@@ -118,7 +127,7 @@ ConvolutionField::ConvolutionField(const Hierarchy& h, const std::vector<Convolu
     std::vector<std::vector<int>> linksOf(sc.polygons.size());
     for (size_t li = 0; li < links_.size(); ++li) {
         std::vector<Rgb> b;
-        for (int p : links_[li].sourcePolygons) b.push_back(h[size_t(p)].B);
+        for (size_t k = 0; k < links_[li].pieces.size(); ++k) b.push_back(pieceB(h, links_[li], k));
         sourceB_.push_back(std::move(b));
         for (int p : links_[li].receiverPolygons) linksOf[size_t(p)].push_back(int(li));
     }
@@ -168,7 +177,7 @@ Rgb ConvolutionField::radiance(const Vec3& p, const Vec3& n, int* group) const {
     std::vector<double> f;
     for (int li : groups_[size_t(*group - 1)]) {
         const ConvolutionLink& l = links_[size_t(li)];
-        f.assign(l.sourcePolygons.size(), 0.0);
+        f.assign(l.pieces.size(), 0.0);
         convolutionFactors(sc, l, p, rp.normal, f.data());
         Rgb irr;
         for (size_t k = 0; k < f.size(); ++k) irr += sourceB_[size_t(li)][k] * f[k];

@@ -1,10 +1,13 @@
 // Convolution links (Soler & Sillion 1998, §3-4): the whole transfer from a planar group of emitting
 // faces S to a planar receiver R, with the shadows of the blockers between them held in one
-// SoftShadowTexture V. At a receiver point y the link delivers
-//     I(y) = V(y) * sum over source faces f of B_f * F(y <- f)
-// with F Lambert's exact unoccluded point-to-polygon form factor and V looked up by central projection
-// from the source centre. Nothing is meshed for it: the receiver keeps the elements its other links
-// need, and the shadow's detail lives in the texture.
+// SoftShadowTexture per part of the source. At a receiver point y the link delivers
+//     I(y) = sum over source parts j of V_j(y) * sum over the pieces of faces f in part j of B_f * F(y <- piece)
+// with F Lambert's exact unoccluded point-to-polygon form factor and V_j looked up by central projection
+// from the part's centre. V weights the source by area (its emission), not by the form factor's kernel, so
+// a source is cut into k x k parts small against its distance to the receiver: the error of that
+// approximation falls as 1/k^2 (parallel planes: worst 4.1 % of the peak with one part, 1.1 % with 2 x 2).
+// Nothing is meshed for it: the receiver keeps the elements its other links need, and the shadow's detail
+// lives in the textures.
 //
 // Gather and push/pull (§4.1-4.2): a CompleteTexture at every leaf below the receiver holds the leaf's
 // mean of F * V per source face, so the leaf gathers sum B_f * mean and the energy balance (what the
@@ -20,18 +23,25 @@
 
 namespace penumbra {
 
+struct SourcePiece {
+    Polygon geom;  // a source face clipped to one part
+    int face = 0;  // index into ConvolutionLink::sourcePolygons
+    int part = 0;  // index into ConvolutionLink::textures
+};
+
 struct ConvolutionLink {
     int receiver = -1;                 // node: a polygon's root element or a planar cluster
     int source = -1;                   // node: a polygon's root element or a cluster of coplanar emitters
     std::vector<int> receiverPolygons; // faces lit through the link, ascending
     std::vector<int> sourcePolygons;   // emitting faces turned toward the receiver, ascending
-    std::shared_ptr<const SoftShadowTexture> texture;
+    std::vector<std::shared_ptr<const SoftShadowTexture>> textures;  // one per part of the source
+    std::vector<SourcePiece> pieces;
     int blockerTriangles = 0;
     double error = 0;                  // E_rr, in texels of half the narrowest penumbra (what e_max bounds)
 };
 
-// Unoccluded irradiance per unit radiosity from each source face at y (normal n), times V(y).
-// `out` has one entry per source face.
+// Unoccluded irradiance per unit radiosity from each source piece at y (normal n), times its part's V(y).
+// `out` has one entry per piece.
 void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y, const Vec3& n, double* out);
 
 // The leaves' share of every convolution link, for the current subdivision.
@@ -48,7 +58,7 @@ public:
 private:
     struct Entry {
         int leaf, link;
-        size_t factors;  // index of the first of the link's source faces' mean factors
+        size_t factors;  // index of the first of the link's source pieces' mean factors
     };
     std::vector<Entry> entries_;       // sorted by leaf
     std::vector<size_t> leafStart_;    // runs of entries_ with one leaf
@@ -71,7 +81,7 @@ public:
 private:
     const Scene* scene_ = nullptr;
     std::vector<ConvolutionLink> links_;
-    std::vector<std::vector<Rgb>> sourceB_;  // per link, per source face
+    std::vector<std::vector<Rgb>> sourceB_;  // per link, per source piece
     std::vector<int> polyGroup_;             // per scene polygon: 0, or 1 + index into groups_
     std::vector<std::vector<int>> groups_;   // links of each group, ascending
     std::vector<int> covered_;               // receiver faces, one entry each
