@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <stdexcept>
 
 #include "convolution/cost_model.h"
@@ -217,7 +218,35 @@ void ConvolutionSites::nodePolygons(int node, std::vector<int>& out) const {
     std::sort(out.begin(), out.end());
 }
 
-bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) {
+bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) { return evaluate(r, s, &out); }
+
+bool ConvolutionSites::wouldLink(int r, int s) { return evaluate(r, s, nullptr); }
+
+bool ConvolutionSites::linkPossibleBelow(int r, int s, const std::function<bool(int)>& significant) {
+    // The largest emitter groups below s: clusters whose senders all emit on one plane, and emitting
+    // faces hanging from clusters that are not such groups.
+    std::vector<int> stack{s};
+    while (!stack.empty()) {
+        int n = stack.back();
+        stack.pop_back();
+        if (!isClusterNode(n) || emitterGroup_[size_t(clusterIndex(n))]) {
+            if (sourceHasEmitters(n) && significant(n) && wouldLink(r, n)) return true;
+            continue;
+        }
+        const ClusterTree& ct = h_.clusters();
+        const Cluster& c = ct[clusterIndex(n)];
+        if (!hasEmitter_[size_t(clusterIndex(n))]) continue;
+        for (int k = 0; k < c.numChildren; ++k) stack.push_back(clusterNode(c.firstChild + k));
+        for (int k = c.begin; k < c.ownEnd; ++k) stack.push_back(ct.polygons()[size_t(k)]);
+    }
+    return false;
+}
+
+bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
+    // Without `out` this only asks whether a link would pass every test: nothing is counted or computed.
+    auto bump = [&](std::atomic<size_t>& counter) {
+        if (out) ++counter;
+    };
     if (r == s || !receiverCandidate(r)) return false;
     if (isClusterNode(s) ? !emitterGroup_[size_t(clusterIndex(s))] : !sourceHasEmitters(s)) return false;
     const Scene& sc = h_.scene();
@@ -240,7 +269,7 @@ bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) {
     Bounds fb;
     for (int p : faces) fb.extend(polygonBox(sc.polygons[size_t(p)]));
     if (sideOf(rplane, fb, tol_) <= 0) return false;  // the source must be wholly in front of the receiver
-    ++stats_.tried;
+    bump(stats_.tried);
 
     // Blocker selection (§5.2): occluders whose boxes cross the shaft between source and receiver.
     const ScenePolygon& splane = sc.polygons[size_t(faces[0])];
@@ -257,14 +286,14 @@ bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) {
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
         if (onOrBehind(splane, qp, tol_) || onOrBehind(rplane, qp, tol_)) continue;
         if (overlaps(qb, rb) || overlaps(qb, fb)) {
-            ++stats_.intruder;
+            bump(stats_.intruder);
             return false;
         }
         const Polygon& g = qp.geom;
         for (int k = 1; k + 1 < g.n; ++k) tris.push_back({g.v[0], g.v[k], g.v[k + 1]});
     }
     if (tris.empty()) {
-        ++stats_.noBlocker;
+        bump(stats_.noBlocker);
         return false;
     }
 
@@ -303,12 +332,12 @@ bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) {
     try {
         ConvolutionPlan plan = planSoftShadow(whole, tris, rec, cs);
         if (plan.slices.empty()) {
-            ++stats_.noBlocker;
+            bump(stats_.noBlocker);
             return false;
         }
         judged = plan.E_rr;
         if (judged > settings_.eMax) {
-            ++stats_.tooCoarse;
+            bump(stats_.tooCoarse);
             return false;
         }
         ConvolutionSettings fine = cs;
@@ -327,46 +356,47 @@ bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) {
                 parts.push_back(std::move(part));
             }
     } catch (const std::domain_error&) {
-        ++stats_.invalid;
+        bump(stats_.invalid);
         return false;
     } catch (const std::invalid_argument&) {
-        ++stats_.invalid;
+        bump(stats_.invalid);
         return false;
     }
     if (parts.empty()) {
-        ++stats_.invalid;
+        bump(stats_.invalid);
         return false;
     }
     if (predicted > settings_.tMax) {
-        ++stats_.tooSlow;
+        bump(stats_.tooSlow);
         return false;
     }
+    if (!out) return true;
     auto t0 = std::chrono::steady_clock::now();
-    out.textures.clear();
-    out.pieces.clear();
+    out->textures.clear();
+    out->pieces.clear();
     try {
         for (size_t j = 0; j < parts.size(); ++j) {
-            out.textures.push_back(std::make_shared<const SoftShadowTexture>(
+            out->textures.push_back(std::make_shared<const SoftShadowTexture>(
                 computeSoftShadow(plans[j], parts[j].desc, tris, partSettings[j])));
-            out.pieces.insert(out.pieces.end(), parts[j].pieces.begin(), parts[j].pieces.end());
+            out->pieces.insert(out->pieces.end(), parts[j].pieces.begin(), parts[j].pieces.end());
         }
     } catch (const std::domain_error&) {
-        ++stats_.invalid;
+        bump(stats_.invalid);
         return false;
     }
     double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     for (double cur = stats_.seconds.load(); !stats_.seconds.compare_exchange_weak(cur, cur + elapsed);) {
     }
-    out.receiver = r;
-    out.source = s;
-    out.receiverPolygons.clear();
+    out->receiver = r;
+    out->source = s;
+    out->receiverPolygons.clear();
     for (int p : rpolys)
         if (sc.polygons[size_t(p)].receives && maxComponent(sc.polygons[size_t(p)].rho) > 0)
-            out.receiverPolygons.push_back(p);
-    out.sourcePolygons = faces;
-    out.blockerTriangles = int(tris.size());
-    out.error = judged;
-    ++stats_.made;
+            out->receiverPolygons.push_back(p);
+    out->sourcePolygons = faces;
+    out->blockerTriangles = int(tris.size());
+    out->error = judged;
+    bump(stats_.made);
     return true;
 }
 

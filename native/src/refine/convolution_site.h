@@ -13,6 +13,7 @@
 // leak light through it.
 #pragma once
 #include <atomic>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -40,11 +41,17 @@ public:
     // Cheap tests (2.): could r receive a convolution link at all, could s send one.
     bool receiverCandidate(int r) const;
     bool sourceHasEmitters(int s) const;
-    // Tests 2-5 for the pair; on success fills `out`, texture computed.
+    // Tests 2-5 for the pair; on success fills `out`, textures computed.
     bool tryLink(int r, int s, ConvolutionLink& out);
+    // The same tests, nothing computed or counted: whether tryLink would succeed.
+    bool wouldLink(int r, int s);
+    // Whether r could take a link from some emitter group below the cluster s whose transfer is
+    // `significant`: the refiner then narrows s down rather than splitting r.
+    bool linkPossibleBelow(int r, int s, const std::function<bool(int)>& significant);
     const ConvolutionStats& stats() const { return stats_; }
 
 private:
+    bool evaluate(int r, int s, ConvolutionLink* out);
     bool planarCluster(int c) const { return planar_[size_t(c)]; }
     void nodePolygons(int node, std::vector<int>& out) const;
 

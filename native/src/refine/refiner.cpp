@@ -274,7 +274,12 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     if (!isClusterNode(si)) canS = false;
     // A receiver that could take a convolution link is kept whole while the source is narrowed down
     // to its emitters (the paper's choice of source refinement before receiver refinement).
-    bool keepReceiver = canS && sites_ && sites_->receiverCandidate(ri) && sites_->sourceHasEmitters(si);
+    // Only where such a link would then pass its tests: elsewhere the split is the standard one, and a
+    // scene without convolution sites refines exactly as with convolution off.
+    bool keepReceiver = canS && sites_ && sites_->receiverCandidate(ri) && sites_->sourceHasEmitters(si) &&
+                        sites_->linkPossibleBelow(ri, si, [&](int g) {
+                            return receiverRho(ri) * fluxBound(h_, g, nodeBox(h_, ri)) > threshold_;
+                        });
     if (canR && !keepReceiver && (!canS || notSmaller(sizeR, sizeS))) {
         for (int a : children(ri, true)) recurse(a, si);
     } else {

@@ -190,6 +190,27 @@ TEST(ConvolutionLink, AnOccluderReachingIntoTheReceiverRefusesTheLink) {
     }
 }
 
+TEST(ConvolutionLink, ASceneWithoutSitesSolvesAsWithConvolutionOff) {
+    // A block resting on the floor has a contact shadow no texture represents within e_max: nothing is
+    // linked, and the refinement (which splits the source before the receiver only where a link would
+    // pass) is exactly the standard one.
+    auto room = testing::litRoom();
+    Settings on, off;
+    off.convolution = false;
+    auto a = solve(room.input(), on, nullptr);
+    auto b = solve(room.input(), off, nullptr);
+    EXPECT_EQ(a->report().convolutionLinks, 0u);
+    EXPECT_GT(a->report().convolutionTried, 0u);
+    EXPECT_EQ(a->report().elements, b->report().elements);
+    EXPECT_EQ(a->report().links, b->report().links);
+    Grid g = floorGrid(0.6, 12);
+    for (float& z : g.points)  // the room's floor spans [-1, 1]^2: keep the grid on it
+        z *= 0.5f;
+    std::vector<float> ra = a->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    std::vector<float> rb = b->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    EXPECT_EQ(ra, rb);
+}
+
 TEST(ConvolutionLink, BitIdenticalForAnyThreadCount) {
     auto scene = parallelPlanes(0.6);
     Settings one, two;
