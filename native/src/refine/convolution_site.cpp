@@ -253,7 +253,7 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     std::vector<int> rpolys, spolys;
     nodePolygons(r, rpolys);
     nodePolygons(s, spolys);
-    Bounds rb = nodeBox(h_, r), sb = nodeBox(h_, s);
+    Bounds rb = nodeBox(h_, r);
 
     // The sending faces turned toward the receiver are the source; the others must not see any of it.
     std::vector<int> faces;
