@@ -165,3 +165,28 @@ def test_slivers_contact_and_sealed_box(empty_scene, penumbra):
     # The slivers lie on the lit floor, so they are lit about as the floor is there.
     slivers = corner_colors(bpy.data.objects["Slivers"])
     assert slivers.mean() > 0.2 * floor
+
+
+def test_faces_flush_under_furniture_stay_dark(empty_scene, penumbra):
+    """The office's desk legs end flush under the desk tops. Their top faces see nothing; cluster links, blind to
+    shadows inside a cluster, lit them at a third of the desk tops' brightness (0.72 against 2.19 here) until
+    faces inside solids were left out of cluster links."""
+    from penumbra.compare import face_means, uv_owner
+    scenes.build("office")
+    rep = penumbra.bake(empty_scene, resolution=128, targets={"LIGHTMAP"})   # leg tops get texels from 128
+    assert rep["clusters"] > 1 and rep["cluster_links"] > 0
+    ob = bpy.data.objects["Furniture"]
+    me = ob.data
+    img = bpy.data.images[rep["outputs"]["Furniture"]["image"]]
+    w, h = img.size
+    means, count = face_means(image_pixels(img), uv_owner(me, ob["penumbra"]["uv_map"], w, h), len(me.polygons))
+    mw = ob.matrix_world
+    legs = [p.index for p in me.polygons
+            if p.normal.z > 0.99 and p.area < 0.005 and abs((mw @ p.center).z - 0.72) < 1e-3 and count[p.index] > 0]
+    tops = [p.index for p in me.polygons if p.normal.z > 0.99 and abs((mw @ p.center).z - 0.76) < 1e-3]
+    assert len(legs) >= 4 and tops
+    lit = float(np.median(means[tops, :3]))
+    worst = float(means[legs, :3].max())
+    print(f"desk tops {lit:.3f}, flush leg tops at most {worst:.2e} ({len(legs)} faces)")
+    assert lit > 0.1
+    assert worst <= 1e-3 * lit

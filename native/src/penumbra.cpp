@@ -78,6 +78,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     checkProgress(progress, "visibility", 0.0);
 
     RayCaster rays(scene);
+    if (!h.clusters().empty()) h.setBuried(rays.buriedFaces(scene, 1e-5 * scene.diagonal));
     rep.seconds["visibility_setup"] = clock.lap();
 
     Refiner refiner(h, rays, settings);

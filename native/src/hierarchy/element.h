@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <utility>
 #include <vector>
 
 #include "hierarchy/cluster.h"
@@ -46,6 +47,9 @@ public:
     void updateClusterFlux() {
         clusters_.updateFlux(scene_, [&](int p) { return (*this)[size_t(p)].B; });
     }
+    // Faces whose front is covered at contact (RayCaster::buriedFaces): no cluster link lights them.
+    void setBuried(std::vector<char> buried) { buried_ = std::move(buried); }
+    bool buried(int polygon) const { return !buried_.empty() && buried_[size_t(polygon)]; }
     size_t size() const { return size_.load(std::memory_order_acquire); }
     size_t numRoots() const { return numRoots_; }
     Element& operator[](size_t i) { return blocks_[i >> kBlockBits][i & kBlockMask]; }
@@ -68,6 +72,7 @@ private:
 
     const Scene& scene_;
     ClusterTree clusters_;
+    std::vector<char> buried_;
     std::vector<std::unique_ptr<Element[]>> blocks_;  // reserved up front, so never reallocated
     std::atomic<size_t> size_{0};
     size_t numRoots_ = 0;

@@ -309,7 +309,7 @@ bool Refiner::sampleNode(int node, const Vec3& toward, bool receiver, uint64_t s
     for (int k = c.begin; k < c.end; ++k) {
         int p = ct.polygons()[k];
         const ScenePolygon& sp = sc.polygons[p];
-        if (receiver ? !(sp.receives && maxComponent(sp.rho) > 0) : !sends(p)) continue;
+        if (receiver ? !(sp.receives && maxComponent(sp.rho) > 0) || h_.buried(p) : !sends(p)) continue;
         double w = sp.area * std::max(0.0, dot(sp.normal, normalize(toward - h_[p].center)));
         if (w <= 0) continue;
         total += w;

@@ -60,7 +60,7 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
     parallelFor(down.size(), resolveThreads(settings_.threads), 256, [&](size_t b, size_t e, int) {
         for (size_t p = b; p < e; ++p) {
             const ScenePolygon& poly = sc.polygons[p];
-            if (!poly.receives) continue;
+            if (!poly.receives || h_.buried(int(p))) continue;
             Rgb sum;
             const Vec3& y = h_[p].center;
             for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent) {

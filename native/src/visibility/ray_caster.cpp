@@ -28,6 +28,7 @@ RayCaster::RayCaster(const Scene& scene) {
             verts.push_back(float(p.geom.v[k].z));
         }
         for (int k = 1; k + 1 < p.geom.n; ++k) {
+            triPolygon_.push_back(int(pi));
             tris.push_back(base);
             tris.push_back(base + k);
             tris.push_back(base + k + 1);
@@ -66,6 +67,39 @@ bool RayCaster::shaftIsClear(const Bounds& a, const Bounds& b, int skipA, int sk
                 clear = false;
         });
     return clear;
+}
+
+std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const {
+    std::vector<char> out(scene.polygons.size(), 0);
+    if (numTriangles_ == 0) return out;
+    const double far = 4 * scene.diagonal;
+    for (size_t i = 0; i < scene.polygons.size(); ++i) {
+        const ScenePolygon& p = scene.polygons[i];
+        if (!p.receives) continue;
+        Vec3 c = p.geom.centroid(), pts[5];
+        int n = 0;
+        pts[n++] = c;
+        for (int k = 0; k < p.geom.n && n < 5; ++k) pts[n++] = (c + p.geom.v[k]) * 0.5;
+        bool inside = true;
+        for (int k = 0; k < n && inside; ++k) {
+            RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
+            RTCRayHit rh{};
+            Vec3 o = pts[k] + p.normal * lift;
+            rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
+            rh.ray.dir_x = float(p.normal.x); rh.ray.dir_y = float(p.normal.y); rh.ray.dir_z = float(p.normal.z);
+            rh.ray.tnear = 0.0f;
+            rh.ray.tfar = float(far);
+            rh.ray.mask = 0xFFFFFFFF;
+            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+            rtcIntersect1(scene_, &ctx, &rh);
+            // Met from behind: the ray started inside a closed surface. Nothing met: open sky.
+            inside = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID &&
+                     dot(scene.polygons[size_t(triPolygon_[rh.hit.primID])].normal, p.normal) > 0;
+        }
+        out[i] = inside;
+    }
+    return out;
 }
 
 std::vector<int> RayCaster::occludersInShaft(const Shaft& shaft) const {

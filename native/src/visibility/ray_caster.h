@@ -27,6 +27,11 @@ public:
     // boxes (Haines-Wallace): every segment between them is then unblocked without casting a ray.
     bool shaftIsClear(const Bounds& a, const Bounds& b, int skipPolygonA, int skipPolygonB) const;
 
+    // Per polygon: its front lies inside a solid (a desk leg's top flush under the desk, a box's bottom on
+    // the floor): the first surface that a ray off it meets, from its centre and up to four inner points,
+    // is always met from behind. Such a face sees nothing; cluster links, which cannot see shadows inside
+    // a cluster, must not light it.
+    std::vector<char> buriedFaces(const Scene& scene, double lift) const;
     // Occluding polygons whose boxes the shaft does not classify Outside (the caller tests further).
     std::vector<int> occludersInShaft(const Shaft& shaft) const;
 
@@ -36,6 +41,7 @@ private:
     size_t numTriangles_ = 0;
     BoxTree occluders_;                 // boxes of occluding polygons
     std::vector<int> occluderPolygon_;  // scene polygon of each box
+    std::vector<int> triPolygon_;       // scene polygon of each Embree triangle
 };
 
 }  // namespace penumbra
