@@ -47,6 +47,11 @@ using Rgb = Vec3;
 inline Rgb mul(const Rgb& a, const Rgb& b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
 inline double maxComponent(const Vec3& a) { return std::fmax(a.x, std::fmax(a.y, a.z)); }
 
+// a >= b, with sizes within a millionth counted equal: a choice between two equal faces of a regular mesh
+// (which to split, a cube's split axis) must not hang on the rounding of their coordinates, so that a
+// scene scaled by 1e-3, which is no dyadic copy of the original, refines the same way.
+inline bool notSmaller(double a, double b) { return a >= b * (1 - 1e-6); }
+
 // Axis-aligned bounding box, used by the hierarchy, the shafts and the scene's scale.
 struct Bounds {
     Vec3 lo{HUGE_VAL, HUGE_VAL, HUGE_VAL};

@@ -13,16 +13,6 @@ constexpr size_t kLeafPolygons = 8;  // a cluster this small links its polygons 
 // cluster would not separate it from anything.
 constexpr double kLargeFraction = 0.5;
 
-Bounds polygonBox(const ScenePolygon& p) {
-    Bounds b;
-    for (int k = 0; k < p.geom.n; ++k) b.extend(p.geom.v[k]);
-    return b;
-}
-
-// a >= b with sizes within a millionth counted equal, so that no choice hangs on the rounding of
-// coordinates (a cube room, a face exactly half its cluster).
-bool notSmaller(double a, double b) { return a >= b * (1 - 1e-6); }
-
 int longestAxis(const Bounds& b) {
     Vec3 d = b.diagonal();
     return notSmaller(d.x, d.y) && notSmaller(d.x, d.z) ? 0 : (notSmaller(d.y, d.z) ? 1 : 2);

@@ -26,12 +26,6 @@ constexpr int kMaxParts = 4;  // texels per side of a multi-face source's emissi
 bool emits(const ScenePolygon& p) { return maxComponent(p.emission) > 0; }
 bool sendsLight(const ScenePolygon& p) { return emits(p) || maxComponent(p.rho) > 0; }
 
-Bounds polygonBox(const ScenePolygon& p) {
-    Bounds b;
-    for (int k = 0; k < p.geom.n; ++k) b.extend(p.geom.v[k]);
-    return b;
-}
-
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
 // then no longer hangs on an object resting exactly on the other, nor on float32 rounding.
 Bounds shrunk(const Bounds& b, double tol) {

@@ -43,10 +43,6 @@ int samplePoints(const Element& e, Vec3* pts) {
 // 2.08 % against Cycles on the Cornell box, 0.2 gives 1.65 %, as without clusters (1.64 %).
 constexpr double kFarField = 0.2;
 
-// a >= b, where sizes within a millionth count as equal: equal faces of a regular mesh must split the
-// same way whatever the rounding of their coordinates (a scene scaled by 1e-3 is not a dyadic copy).
-bool notSmaller(double a, double b) { return a >= b * (1 - 1e-6); }
-
 }  // namespace
 
 Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)

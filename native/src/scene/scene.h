@@ -39,6 +39,12 @@ struct ScenePolygon {
     int input = -1;         // index of the input polygon it came from
 };
 
+inline Bounds polygonBox(const ScenePolygon& p) {
+    Bounds b;
+    for (int k = 0; k < p.geom.n; ++k) b.extend(p.geom.v[k]);
+    return b;
+}
+
 struct Scene {
     std::vector<ScenePolygon> polygons;
     std::vector<std::string> objectNames;
