@@ -357,6 +357,57 @@ def grid(n, name="Grid"):
     return b
 
 
+def shade(b, z, tiles=4, pitch=0.5, tile=0.3, rho=0.0, name="Shade"):
+    """A perforated shade of tiles x tiles flat tiles facing down at height z: a convolution site."""
+    for i in range(tiles):
+        for j in range(tiles):
+            cx, cy = (i - (tiles - 1) / 2) * pitch, (j - (tiles - 1) / 2) * pitch
+            b.quad_xy(cx - tile / 2, cy - tile / 2, cx + tile / 2, cy + tile / 2, z, name, up=False, rho=rho)
+    return b
+
+
+def shade_against_the_lamp():
+    """A shade 1e-4 m under the lamp: the penumbra scale is unbounded (the convolution must refuse or cope)."""
+    return Case(shade(grid_floor(8), 2.5 - 1e-4).arrays(), note="convolution: source-side contact")
+
+
+def shade_on_the_floor():
+    """Black tiles lying in the floor's plane, facing up: an occluder coplanar with the receiver."""
+    b = grid_floor(8)
+    for i in range(4):
+        b.quad_xy(-1 + 0.5 * i, -0.2, -0.8 + 0.5 * i, 0.2, 0.0, "Sheet", rho=0.0)
+    return Case(shade(b, 1.2).arrays(), note="convolution: coplanar occluder")
+
+
+def triangle_lamp_over_shade():
+    """A lamp of four emitting triangles (a non-rectangular emitter group) over a shade: the emission image."""
+    b = shade(grid_floor(8), 1.2)
+    c, s, z = (0.0, 0.0), 0.4, 2.5
+    pts = [(-s, -s), (-s, s), (s, s), (s, -s)]
+    for k in range(4):
+        a, e = pts[k], pts[(k + 1) % 4]
+        b.face([(c[0], c[1], z), (e[0], e[1], z), (a[0], a[1], z)], "TriLamp", rho=0.0, emit=20.0)
+    return Case(b.arrays(), note="convolution: emitter group of triangles")
+
+
+def wide_lamp_near_shade():
+    """A lamp as wide as its height above the floor: its textures are cut into the most parts."""
+    b = grid_floor(8)
+    b.lamp(0, 0, 1.0, 2.0, 10.0)
+    return Case(shade(b, 0.5, tiles=6, pitch=0.4, tile=0.2).arrays(), note="convolution: 4 x 4 source parts")
+
+
+def grid_floor(n):
+    """A 4 x 4 m floor in n x n faces under a 0.8 m lamp at 2.5 m."""
+    b = Builder()
+    xs = np.linspace(-2, 2, n + 1)
+    for i in range(n):
+        for j in range(n):
+            b.quad_xy(xs[i], xs[j], xs[i + 1], xs[j + 1], 0.0, "Floor", rho=0.5)
+    b.lamp(0, 0, 2.5, 0.8, 20.0)
+    return b
+
+
 def large_scene():
     return Case(grid(40).arrays(), settings={"min_size": 0.02}, note="1607 faces")
 
@@ -369,7 +420,8 @@ CASES = {f.__name__: f for f in [
     nothing_emits, albedo_zero, albedo_0999, albedo_above_one, albedo_negative, albedo_nan,
     emission_negative, emission_inf, light_power_1e_minus_9, light_power_1e9, light_inside_closed_box,
     single_polygon, single_dark_polygon, index_out_of_range, negative_index, triangle_marker_in_wrong_column,
-    object_index_out_of_range, unknown_flag_bits, two_sided_mesh_emitter, large_scene,
+    object_index_out_of_range, unknown_flag_bits, two_sided_mesh_emitter, large_scene, shade_against_the_lamp,
+    shade_on_the_floor, triangle_lamp_over_shade, wide_lamp_near_shade,
 ]}
 
 

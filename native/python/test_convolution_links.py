@@ -137,3 +137,19 @@ def test_max_texture_caps_the_resolution(lattice):
 def test_bad_convolution_settings_are_refused(key, value):
     with pytest.raises(ValueError, match=key):
         _native.solve(*lattice_scene(), {key: value})
+
+
+def test_an_occluder_just_below_the_lamp_is_not_taken_for_the_lamps_plane(lattice):
+    """A tile 0.1 mm under the lamp, hiding half of it, besides the shade: it is a blocker (here one the
+    convolution cannot take, touching the source), not part of the lamp's plane, so the floor gets half the
+    light with convolution on as with it off."""
+    verts, polys, refl, emis, flags, obj, names = lattice_scene()
+    L, z = LAMP, HEIGHT - 1e-4
+    tile = np.array([(-L, -L, z), (-L, 0, z), (L, 0, z), (L, -L, z)], np.float32)   # faces down
+    args = (np.vstack([verts, tile]), np.vstack([polys, np.arange(4, dtype=np.int32) + len(verts)]),
+            np.vstack([refl, np.zeros((1, 3), np.float32)]), np.vstack([emis, np.zeros((1, 3), np.float32)]),
+            np.append(flags, np.uint8(0)), np.append(obj, np.int32(len(names))), names + ["Tile"])
+    _, pts, normals, _ = lattice
+    on = _native.solve(*args, {}).radiance(pts, normals)[:, 0].astype(np.float64)
+    off = _native.solve(*args, {"convolution": False, "epsilon": 0.002}).radiance(pts, normals)[:, 0]
+    assert abs(on.sum() / off.sum() - 1) < 0.05

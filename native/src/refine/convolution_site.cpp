@@ -155,6 +155,11 @@ ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, co
     : h_(h), rays_(rays), settings_(s) {
     const Scene& sc = h.scene();
     tol_ = 1e-3 * sc.diagonal;
+    // Lying in a plane is a matter of float32 rounding of the caller's coordinates (a few ulps of the
+    // largest, large for a scene far from the origin), not of tol_: a tile 0.1 mm under a lamp blocks it.
+    Vec3 far = vmax(vmax(sc.bounds.lo + sc.offset, -(sc.bounds.lo + sc.offset)),
+                    vmax(sc.bounds.hi + sc.offset, -(sc.bounds.hi + sc.offset)));
+    planeTol_ = 1e-6 * sc.diagonal + 4.0 * std::ldexp(maxComponent(far), -23);
     const ClusterTree& ct = h.clusters();
     planar_.assign(ct.size(), 0);
     hasEmitter_.assign(ct.size(), 0);
@@ -278,7 +283,7 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
         Bounds qb = shrunk(polygonBox(qp), tol_);
         if (shaft.classify(qb) == Shaft::Outside) continue;
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
-        if (onOrBehind(splane, qp, tol_) || onOrBehind(rplane, qp, tol_)) continue;
+        if (onOrBehind(splane, qp, planeTol_) || onOrBehind(rplane, qp, planeTol_)) continue;
         if (overlaps(qb, rb) || overlaps(qb, fb)) {
             bump(stats_.intruder);
             return false;

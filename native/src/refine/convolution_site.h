@@ -58,7 +58,8 @@ private:
     const Hierarchy& h_;
     const RayCaster& rays_;
     Settings settings_;
-    double tol_;
+    double tol_;       // boxes this close count as touching (an object resting on the receiver)
+    double planeTol_;  // a point this close to a plane lies in it
     std::vector<char> planar_;       // per cluster: all its polygons share one plane
     std::vector<char> hasEmitter_;   // per cluster: some polygon below emits
     std::vector<char> emitterGroup_; // per cluster: every polygon below that sends light emits, on one plane
