@@ -171,12 +171,12 @@ ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, co
         const ScenePolygon* firstSender = nullptr;
         for (int k = cl.begin; k < cl.end; ++k) {
             const ScenePolygon& p = sc.polygons[size_t(ct.polygons()[size_t(k)])];
-            planar = planar && samePlane(first, p, tol_);
+            planar = planar && samePlane(first, p, planeTol_);
             emitter = emitter || emits(p);
             if (!sendsLight(p)) continue;
             if (!emits(p)) group = false;
             if (!firstSender) firstSender = &p;
-            else group = group && samePlane(*firstSender, p, tol_);
+            else group = group && samePlane(*firstSender, p, planeTol_);
         }
         planar_[c] = planar;
         hasEmitter_[c] = emitter;
@@ -277,7 +277,10 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     std::vector<int> candidates = rays_.occludersInShaft(shaft);
     std::sort(candidates.begin(), candidates.end());
     for (int q : candidates) {
-        if (std::binary_search(rpolys.begin(), rpolys.end(), q) || std::binary_search(spolys.begin(), spolys.end(), q))
+        // The receiver's faces all lie in its plane; of the source's node only the emitting faces are
+        // skipped: anything else in it (a lamp's housing) may block, and overlapping the source's box it
+        // then refuses the link.
+        if (std::binary_search(rpolys.begin(), rpolys.end(), q) || std::binary_search(faces.begin(), faces.end(), q))
             continue;
         const ScenePolygon& qp = sc.polygons[size_t(q)];
         Bounds qb = shrunk(polygonBox(qp), tol_);
