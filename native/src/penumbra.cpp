@@ -106,9 +106,10 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         h.updateClusterFlux();
         links = refiner.rerefine(links, progress, changed);
         remapLinks(links, h.canonicalize());
+        rep.seconds["refine"] += clock.lap();
+        if (!changed) break;  // no element was split: the complete textures still fit the leaves
         attachTextures();
         rep.seconds["refine"] += clock.lap();
-        if (!changed) break;
         res = solver.solve(links, progress);
         totalIterations += res.iterations;
         rep.refinePasses = pass + 1;

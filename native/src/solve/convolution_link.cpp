@@ -43,7 +43,9 @@ void collectLeaves(const Hierarchy& h, int e, std::vector<int>& out) {
 }  // namespace
 
 void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y, const Vec3& n, double* out) {
-    std::vector<double> vis(l.textures.size());
+    // Called per texel and per leaf sample: the visibility of each part goes in a per-thread buffer.
+    thread_local std::vector<double> vis;
+    vis.resize(l.textures.size());
     for (size_t j = 0; j < vis.size(); ++j) {
         float v = lookupVisibility(*l.textures[j], y);
         vis[j] = std::isfinite(v) ? std::clamp(double(v), 0.0, 1.0) : 0.0;
@@ -174,7 +176,7 @@ Rgb ConvolutionField::radiance(const Vec3& p, const Vec3& n, int* group) const {
     *group = polyGroup_[size_t(face)];
     const ScenePolygon& rp = sc.polygons[size_t(face)];
     Rgb out;
-    std::vector<double> f;
+    thread_local std::vector<double> f;  // per texel: no allocation once the buffer has grown
     for (int li : groups_[size_t(*group - 1)]) {
         const ConvolutionLink& l = links_[size_t(li)];
         f.assign(l.pieces.size(), 0.0);
