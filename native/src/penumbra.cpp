@@ -42,6 +42,7 @@ void validateSettings(const Settings& s) {
     if (!(s.eMax > 0) || !std::isfinite(s.eMax)) bad("e_max must be a positive number");
     if (!(s.tMax > 0) || !std::isfinite(s.tMax)) bad("t_max must be a positive number");
     if (s.maxTexture < 16 || s.maxTexture > 4096) bad("max_texture must be in [16, 4096]");
+    if (s.gatherRays < 0 || s.gatherRays > 256) bad("gather_rays must be in [0, 256]");
 }
 
 void sortLinks(std::vector<Link>& links) {
@@ -77,7 +78,8 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     rep.seconds["scene"] = clock.lap();
     checkProgress(progress, "visibility", 0.0);
 
-    RayCaster rays(scene);
+    sol->rays_ = std::make_shared<RayCaster>(scene);
+    const RayCaster& rays = *sol->rays_;
     if (!h.clusters().empty()) h.setBuried(rays.buriedFaces(scene, 1e-5 * scene.diagonal));
     rep.seconds["visibility_setup"] = clock.lap();
 
@@ -122,8 +124,27 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         rep.warnings.push_back("solver stopped after max_iterations with estimated error " +
                                std::to_string(res.residual));
 
-    sol->field_ = conv.empty() ? RadianceField(h)
-                               : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
+    if (settings.finalGather) {
+        // Emitting faces whose light a convolution link's texture already draws on a receiver.
+        std::vector<std::vector<int>> excluded(scene.polygons.size());
+        for (const ConvolutionLink& l : conv)
+            for (int r : l.receiverPolygons)
+                excluded[size_t(r)].insert(excluded[size_t(r)].end(), l.sourcePolygons.begin(), l.sourcePolygons.end());
+        for (auto& v : excluded) {
+            std::sort(v.begin(), v.end());
+            v.erase(std::unique(v.begin(), v.end()), v.end());
+        }
+        auto direct = std::make_shared<DirectLight>(scene, rays, settings.gatherRays, std::move(excluded));
+        std::vector<Rgb> shadowed, unoccluded;
+        solver.directIrradiance(links, shadowed, unoccluded);
+        std::vector<Rgb> reflected = conv.empty() ? std::vector<Rgb>{} : textures.reflected(h, conv);
+        sol->field_ = RadianceField(h, reflected, conv.empty() ? ConvolutionField{} : ConvolutionField(h, conv),
+                                    shadowed, unoccluded, direct);
+        rep.gatherEmitters = direct->emitters();
+    } else {
+        sol->field_ = conv.empty() ? RadianceField(h)
+                                   : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
+    }
     rep.seconds["reconstruct"] = clock.lap();
     rep.elements = h.size();
     rep.leaves = h.countLeaves();

@@ -13,6 +13,7 @@
 #include "solve/link.h"
 #include "solve/settings.h"
 #include "util/progress.h"
+#include "visibility/ray_caster.h"
 
 namespace penumbra {
 
@@ -25,6 +26,7 @@ struct Report {
     size_t convolutionLinks = 0, convolutionTried = 0, convolutionTexels = 0;
     std::map<std::string, size_t> convolutionRefused;
     double convolutionMaxError = 0;
+    size_t gatherEmitters = 0;  // emitting faces the final gather evaluates at every bake point
     int iterations = 0, refinePasses = 0;
     double residual = 0;
     bool converged = false;
@@ -47,6 +49,7 @@ private:
     friend std::unique_ptr<Solution> solve(const SceneInput&, const Settings&, Progress*);
     std::unique_ptr<Scene> scene_;
     std::unique_ptr<Hierarchy> hierarchy_;
+    std::shared_ptr<RayCaster> rays_;  // kept for the final gather at bake time
     std::vector<Link> links_;
     std::vector<ConvolutionLink> convLinks_;
     RadianceField field_;

@@ -36,15 +36,26 @@ std::vector<double> faceThickness(const Scene& sc) {
 
 }  // namespace
 
-RadianceField::RadianceField(const Hierarchy& h) { init(h, nullptr); }
+RadianceField::RadianceField(const Hierarchy& h) { init(h, nullptr, nullptr, nullptr); }
 
 RadianceField::RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv)
     : conv_(std::move(conv)) {
-    init(h, textured.size() == h.size() ? &textured : nullptr);
+    init(h, textured.size() == h.size() ? &textured : nullptr, nullptr, nullptr);
 }
 
-void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured) {
+RadianceField::RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv,
+                             const std::vector<Rgb>& shadowed, const std::vector<Rgb>& unoccluded,
+                             std::shared_ptr<const DirectLight> direct)
+    : conv_(std::move(conv)), direct_(std::move(direct)) {
+    bool ok = shadowed.size() == h.size() && unoccluded.size() == h.size();
+    init(h, textured.size() == h.size() ? &textured : nullptr, ok ? &shadowed : nullptr, ok ? &unoccluded : nullptr);
+    if (!ok) direct_.reset();
+}
+
+void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured, const std::vector<Rgb>* shadowed,
+                         const std::vector<Rgb>* unoccluded) {
     const Scene& sc = h.scene();
+    scene_ = &sc;
     diagonal_ = sc.diagonal;
     // A point handed in lies on its own surface up to float32 rounding of the caller's coordinates
     // (a few ulps of the largest input coordinate, which is large for a scene far from the origin) and
@@ -55,6 +66,20 @@ void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured) {
                     vmax(sc.bounds.hi + sc.offset, -(sc.bounds.hi + sc.offset)));
     double onPlane = 1e-5 * diagonal_ + 4.0 * std::ldexp(maxComponent(far), -23);
     std::vector<double> thickness = faceThickness(sc);
+    polyTol_.assign(sc.polygons.size(), 0.0);
+    std::vector<Bounds> polyBoxes;
+    for (size_t i = 0; i < sc.polygons.size(); ++i) {
+        const ScenePolygon& p = sc.polygons[i];
+        polyTol_[i] = onPlane + thickness[i];
+        if (!p.receives) continue;
+        Bounds b = polygonBox(p);
+        double t = 2 * polyTol_[i];
+        b.extend(b.lo - Vec3{t, t, t});
+        b.extend(b.hi + Vec3{t, t, t});
+        polyBoxes.push_back(b);
+        located_.push_back(int(i));
+    }
+    polygonBoxes_ = BoxTree(std::move(polyBoxes));
     for (size_t i = 0; i < h.size(); ++i) {
         const Element& e = h[i];
         if (!e.isLeaf()) continue;
@@ -95,7 +120,15 @@ void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured) {
         l.support.extend(l.center + ext);
         l.value = (e.B - p.emission) / M_PI;
         if (textured) l.value = vmax(Rgb{}, l.value - (*textured)[i] / M_PI);
+        l.indirect = shadowed ? vmax(Rgb{}, l.value - mul(p.rho, (*shadowed)[i]) / M_PI) : l.value;
+        // No linked light from any emitter at all (a face under a box, a sealed room): nothing is
+        // known to be visible, so nothing is.
+        l.vis = Rgb{};
+        if (shadowed)
+            for (int c = 0; c < 3; ++c)
+                if ((*unoccluded)[i][c] > 0) l.vis[c] = std::clamp((*shadowed)[i][c] / (*unoccluded)[i][c], 0.0, 1.0);
         l.group = conv_.polygonGroup(e.polygon);
+        l.surface = p.surface;
         leaves_.push_back(l);
     }
     std::vector<Bounds> boxes;
@@ -131,27 +164,75 @@ bool RadianceField::acrossFold(const Leaf& l, const Vec3& d, double off, const V
     return std::fabs(off) <= sinTheta * length(d) + l.planeTol;
 }
 
-Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
-    if (conv_.empty()) return smooth(p, n, 0);
-    int group = 0;
-    Rgb detail = conv_.radiance(p, n, &group);
-    return smooth(p, n, group) + detail;
+int RadianceField::locate(const Vec3& p, const Vec3& n) const {
+    const Scene& sc = *scene_;
+    int best = -1;
+    double bestMiss = HUGE_VAL;
+    polygonBoxes_.query([&](const Bounds& b) { return contains(b, p); }, [&](int i) {
+        if (!contains(polygonBoxes_.box(i), p)) return;
+        int q = located_[size_t(i)];
+        const ScenePolygon& sp = sc.polygons[size_t(q)];
+        if (dot(n, sp.normal) < 0.9) return;
+        const Polygon& g = sp.geom;
+        double tol = polyTol_[size_t(q)];
+        double miss = std::fabs(dot(p - g.v[0], sp.normal));
+        if (miss > tol) return;
+        double outside = 0;
+        for (int k = 0; k < g.n; ++k) {
+            Vec3 inward = cross(sp.normal, g.v[(k + 1) % g.n] - g.v[k]);
+            double len = length(inward);
+            if (len > 0) outside = std::max(outside, -dot(p - g.v[k], inward) / len);
+        }
+        if (outside > 2 * tol) return;
+        miss += outside;
+        if (miss < bestMiss || (miss == bestMiss && q < best)) {
+            bestMiss = miss;
+            best = q;
+        }
+    });
+    return best;
 }
 
-Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group) const {
-    Rgb sum;
+Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
+    int poly = locate(p, n);
+    int surface = poly >= 0 ? scene_->polygons[size_t(poly)].surface : -1;
+    bool gather = direct_ && poly >= 0;
+    int group = 0;
+    Rgb detail = conv_.empty() ? Rgb{} : conv_.radiance(p, n, &group);
+    Rgb vis{1, 1, 1};
+    Rgb out = smooth(p, n, group, surface, gather, gather && !direct_->castsRays() ? &vis : nullptr) + detail;
+    if (gather) {
+        const ScenePolygon& sp = scene_->polygons[size_t(poly)];
+        // A point on the polygon's edge lies in the plane of the face meeting it there (the wall
+        // above a floor texel at the island border), which its form factor would see edge-on: the
+        // light is the limit from inside, so the point is moved a hair toward the polygon's interior.
+        Vec3 toward = sp.geom.centroid() - p;
+        toward = toward - sp.normal * dot(toward, sp.normal);
+        double len = length(toward), nudge = 1e-5 * diagonal_;
+        Vec3 q = len > nudge ? p + toward * (nudge / len) : p;
+        out += mul(mul(sp.rho, vis), direct_->irradiance(q, sp.normal, poly)) * (1.0 / M_PI);
+    }
+    return out;
+}
+
+Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis) const {
+    Rgb sum, vsum;
     double wsum = 0;
     auto containsP = [&](const Bounds& b) { return contains(b, p); };
     supports_.query(containsP, [&](int i) {
         const Leaf& l = leaves_[i];
-        if (l.group != group || !contains(l.support, p)) return;
+        if (l.group != group || (surface >= 0 && l.surface != surface) || !contains(l.support, p)) return;
         double w = weight(l, p, n);
         if (w > 0) {
-            sum += l.value * w;
+            sum += (indirectOnly ? l.indirect : l.value) * w;
+            vsum += l.vis * w;
             wsum += w;
         }
     });
-    if (wsum > 0) return sum / wsum;
+    if (wsum > 0) {
+        if (vis) *vis = vsum / wsum;
+        return sum / wsum;
+    }
     // The point lies off every leaf's support (a vertex of a modifier-displaced mesh, a face that
     // was too small to keep): take the nearest leaf facing the same way, searching wider boxes. Nearest
     // to the element rather than to its centre, so that a coarse leaf of a parallel surface whose
@@ -168,7 +249,8 @@ Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group) const {
         int bestLeaf = -1;
         supports_.query([&](const Bounds& b) { return overlaps(b, box); }, [&](int i) {
             const Leaf& l = leaves_[i];
-            if ((strict && l.group != group) || dot(l.normal, n) <= 0) return;
+            if ((strict && (l.group != group || (surface >= 0 && l.surface != surface))) || dot(l.normal, n) <= 0)
+                return;
             Vec3 d = p - l.center;
             double off = dot(d, l.normal);
             double inPlane = std::sqrt(std::max(0.0, length2(d) - off * off));
@@ -178,7 +260,10 @@ Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group) const {
                           (d2 <= best + band && (c2 < bestCentre || (c2 == bestCentre && i < bestLeaf)));
             if (nearer) { best = d2; bestCentre = c2; bestLeaf = i; }
         });
-        if (bestLeaf >= 0 && best <= r * r) return leaves_[bestLeaf].value;
+        if (bestLeaf >= 0 && best <= r * r) {
+            if (vis) *vis = leaves_[bestLeaf].vis;
+            return indirectOnly ? leaves_[bestLeaf].indirect : leaves_[bestLeaf].value;
+        }
     }
     return Rgb{};
 }

@@ -5,8 +5,10 @@
 // its own surface: on its plane (to float32 rounding and the warp of its face), or across a shallow
 // fold onto a neighbouring facet; never a parallel surface, however close.
 #pragma once
+#include <memory>
 #include <vector>
 
+#include "bake/direct_light.h"
 #include "geometry/box_tree.h"
 #include "hierarchy/element.h"
 #include "solve/convolution_link.h"
@@ -20,6 +22,13 @@ public:
     // With convolution links: each leaf's value leaves out what its complete textures reflect
     // (`textured`, per element), and `conv` adds it back point by point, shadow detail included.
     RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv);
+    // With the final gather: `shadowed` (per element, Solver::directIrradiance) is what the leaves
+    // hold of the emitters' light; it is taken out of them and `direct` evaluates it at every point
+    // instead: the exact unoccluded form factors there, times the visibility blended from the leaves
+    // (shadowed / unoccluded), or with its own rays when it casts them. `textured` may be empty.
+    RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv,
+                  const std::vector<Rgb>& shadowed, const std::vector<Rgb>& unoccluded,
+                  std::shared_ptr<const DirectLight> direct);
     // p in the scene's recentred coordinates; n the geometric normal of the surface at p.
     Rgb radiance(const Vec3& p, const Vec3& n) const;
     size_t leaves() const { return leaves_.size(); }
@@ -31,16 +40,29 @@ private:
         double planeTol;              // how far off its plane a point of its own surface can be
         double reach;                 // |e1| + |e2|: no corner is further from the centre
         Rgb value;                    // (B - E) / pi, less what convolution links give it
+        Rgb indirect;                 // value less what the leaf's links bring straight from emitters
+        Rgb vis;                      // visible fraction of the emitters' light at the leaf, as linked
         int group = 0;                // ConvolutionField's group of its polygon: blends only within it
+        int surface = -1;             // connected surface of its polygon: blends only within it
         Bounds support;
     };
-    void init(const Hierarchy& h, const std::vector<Rgb>* textured);
-    Rgb smooth(const Vec3& p, const Vec3& n, int group) const;  // the blend of the group's leaves
+    void init(const Hierarchy& h, const std::vector<Rgb>* textured, const std::vector<Rgb>* shadowed,
+              const std::vector<Rgb>* unoccluded);
+    // The blend of the leaves of one convolution group and (surface >= 0) one connected surface;
+    // with `vis`, also the blend of their visibilities.
+    Rgb smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis = nullptr) const;
+    // The receiving polygon p lies on (normal within 26 degrees of n), or -1.
+    int locate(const Vec3& p, const Vec3& n) const;
     double weight(const Leaf& l, const Vec3& p, const Vec3& n) const;
     bool acrossFold(const Leaf& l, const Vec3& d, double off, const Vec3& n) const;
 
     ConvolutionField conv_;
+    std::shared_ptr<const DirectLight> direct_;
+    const Scene* scene_ = nullptr;
     std::vector<Leaf> leaves_;
+    std::vector<int> located_;        // receiving polygons, in polygonBoxes_ order
+    std::vector<double> polyTol_;     // per scene polygon: how far off its plane its own points can be
+    BoxTree polygonBoxes_;
     BoxTree supports_;  // over leaves_[i].support
     double diagonal_ = 0;
 };

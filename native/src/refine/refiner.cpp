@@ -241,6 +241,12 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
         receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
         Link l;
         if (!estimateCluster(ri, si, rb, sb, l)) return;
+        // A transfer that no ray gets through is kept with V = 0: it adds nothing to the solve, but
+        // the final gather reads the unoccluded light of every transfer as the measure of visibility.
+        if (l.V <= 0) {
+            keep(l, out);
+            return;
+        }
         // A cluster shares what it receives among its faces by their cosines alone, blind to
         // shadows inside it: a partly hidden cluster would light the inside of a sealed box. It is
         // opened instead, down to faces whose own links see their own visibility.
@@ -347,7 +353,7 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
         l.V = float(rays_.unoccludedFraction(from, to, n));
         stats_.rays += size_t(n);
     }
-    return l.V > 0;
+    return true;
 }
 
 void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
@@ -366,7 +372,9 @@ void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
     // Rays are spent only once the unoccluded transfer is accurate enough to be linked.
     estimateVisibility(ri, si, l);
     if (linkError(l) <= threshold_ || !l.partial() || (!canR && !canS)) {
-        if (l.F > 0) keep(l, out);
+        // Hidden transfers are kept too (F = 0): the final gather's visibility is the linked light
+        // over the unoccluded light, and a hidden transfer must count in the second.
+        if (l.Fmean > 0) keep(l, out);
         return;
     }
     // Partial visibility: either side's split narrows down where the shadow boundary runs.
@@ -482,7 +490,8 @@ std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* pr
                 for (size_t i = lo; i < hi; ++i) {
                     if (poll.stop(t, double(done) / chunks)) break;
                     const Link& l = links[i];
-                    bool splittable = canSplit(l.receiver) || (l.partial() && canSplit(l.source));
+                    // A hidden transfer stays hidden whatever its sources' radiosities become.
+                    bool splittable = l.V > 0 && (canSplit(l.receiver) || (l.partial() && canSplit(l.source)));
                     if (linkError(l) > threshold_ && splittable) {
                         anyChange = true;
                         refine(l.receiver, l.source, out[c]);

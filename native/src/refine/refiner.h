@@ -53,7 +53,8 @@ private:
     // A pair with a cluster at one end: links it, drops it, or (with `defer`) hands back the pairs
     // it splits into instead of refining them.
     void refineCluster(int r, int s, std::vector<Link>& out, std::vector<std::pair<int, int>>* defer);
-    // Visibility of a cluster link from rays between faces of both ends; false when nothing flows.
+    // Visibility of a cluster link from rays between faces of both ends (V may be 0); false when no
+    // face of one end is turned toward the other.
     bool estimateCluster(int r, int s, const Bounds& rb, const Bounds& sb, Link& l);
     // Points on the faces of a node that look toward `toward`, spread by projected area; false when
     // none does.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <unordered_map>
 #include <sstream>
 
 #include "util/progress.h"
@@ -111,6 +112,34 @@ Scene buildScene(const SceneInput& in) {
     // Faces below this area are numerically zero at the scene's scale (and at float32 input precision).
     double minArea = std::pow(1e-7 * rawDiagonal, 2);
 
+    // Connected surfaces: union-find over the input vertices of every face, with vertices at
+    // bit-identical positions taken as one (an edge-split or imported mesh repeats its vertices).
+    std::vector<int32_t> parent(in.numVertices);
+    {
+        std::unordered_map<std::string, int32_t> first;
+        first.reserve(in.numVertices);
+        for (size_t v = 0; v < in.numVertices; ++v) {
+            float c[3] = {in.vertices[v * 3] + 0.0f, in.vertices[v * 3 + 1] + 0.0f, in.vertices[v * 3 + 2] + 0.0f};
+            auto [it, fresh] = first.emplace(std::string(reinterpret_cast<const char*>(c), sizeof c), int32_t(v));
+            parent[v] = fresh ? int32_t(v) : it->second;
+        }
+    }
+    auto findRoot = [&](int32_t v) {
+        while (parent[size_t(v)] != v) {
+            parent[size_t(v)] = parent[size_t(parent[size_t(v)])];
+            v = parent[size_t(v)];
+        }
+        return v;
+    };
+    for (size_t p = 0; p < in.numPolygons; ++p) {
+        const int32_t* idx = in.polygons + p * 4;
+        int nv = idx[3] < 0 ? 3 : 4;
+        for (int k = 1; k < nv; ++k) {
+            int32_t a = findRoot(idx[0]), b = findRoot(idx[k]);
+            if (a != b) parent[size_t(std::max(a, b))] = std::min(a, b);
+        }
+    }
+
     std::map<int, size_t> degenerateByObject;
     auto add = [&](const Polygon& geom, size_t p, bool back) {
         ScenePolygon sp;
@@ -126,6 +155,7 @@ Scene buildScene(const SceneInput& in) {
         sp.occludes = !(f & kLightOnly) && !back;
         sp.object = in.objectIndex[p];
         sp.input = int(p);
+        sp.surface = findRoot(in.polygons[p * 4]);
         scene.maxEmission = std::max(scene.maxEmission, maxComponent(sp.emission));
         scene.polygons.push_back(sp);
     };

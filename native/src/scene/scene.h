@@ -37,6 +37,9 @@ struct ScenePolygon {
     bool occludes = true;   // put in the ray-tracing scene (a back-side copy shares its twin's triangles)
     int object = -1;
     int input = -1;         // index of the input polygon it came from
+    // Faces joined through shared input vertices, transitively: one connected surface. The display
+    // blends elements of one surface only, so two rooms whose walls share a plane stay apart.
+    int surface = -1;
 };
 
 inline Bounds polygonBox(const ScenePolygon& p) {

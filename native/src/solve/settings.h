@@ -21,6 +21,15 @@ struct Settings {
     double eMax = 1.0;           // largest blocker error E_rr of a convolution link, in texels of half the narrowest penumbra
     double tMax = 0.05;          // largest predicted FFT time of one convolution link, seconds
     int maxTexture = 512;        // largest soft shadow texture, texels per side
+    // Final gather: the emitters' light is evaluated exactly at every bake point (form factor times
+    // visibility) instead of read from the elements; the hierarchy carries the reflected remainder.
+    bool finalGather = true;
+    // Visibility of the gathered light: 0 takes it from the hierarchy's links (their shadowed over
+    // unoccluded light, blended like the radiosity); N > 0 casts up to N rays per emitter group and
+    // point to fixed low-discrepancy points (exact in full light and umbra, but a detailed shadow
+    // such as a lattice shade needs hundreds: 4.8 % RMS with 64, 1.6 % with 256, against 0.9 % from
+    // the links).
+    int gatherRays = 0;
     // Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,
     // instead of being killed by the system (or, for face pairs, running for hours).
     size_t maxElements = 2000000;    // quadtree elements, ~400 bytes each at the peak (canonicalize)

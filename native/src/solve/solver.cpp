@@ -41,9 +41,9 @@ void Solver::gather(const std::vector<Link>& links) {
             for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
                 const Link& l = links[i];
                 if (isClusterNode(l.source))
-                    sum += fluxAt(h_, l.source, re.center, &n) * double(l.V);
+                    sum += fluxAt(h_, l.source, re.center, &n) * (unoccluded_ ? 1.0 : double(l.V));
                 else
-                    sum += h_[l.source].B * double(l.F);
+                    sum += h_[l.source].B * double(unoccluded_ ? l.Fmean : l.F);
             }
             re.irradiance = sum;
         }
@@ -66,7 +66,7 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
             for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent) {
                 auto [lo, hi] = clusterLinks_[size_t(c)];
                 for (size_t i = lo; i < hi; ++i)
-                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * double(links[i].V);
+                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * (unoccluded_ ? 1.0 : double(links[i].V));
             }
             down[p] = sum;
         }
@@ -91,6 +91,50 @@ Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected)
     }
     e.B = B;
     return B;
+}
+
+void Solver::directIrradiance(const std::vector<Link>& links, std::vector<Rgb>& shadowed,
+                              std::vector<Rgb>& unoccluded) {
+    const Scene& sc = h_.scene();
+    std::vector<Rgb> saved(h_.size());
+    for (size_t i = 0; i < h_.size(); ++i) {
+        saved[i] = h_[i].B;
+        h_[i].B = sc.polygons[h_[i].polygon].emission;
+    }
+    const std::vector<ConvolutionLink>* convLinks = convLinks_;
+    const CompleteTextures* textures = textures_;
+    convLinks_ = nullptr;
+    textures_ = nullptr;
+    size_t roots = h_.numRoots();
+    for (bool open : {false, true}) {
+        unoccluded_ = open;
+        groupStart_.clear();
+        gather(links);
+        std::vector<Rgb> down(roots);
+        if (!h_.clusters().empty()) distributeClusters(links, down);
+        std::vector<Rgb>& out = open ? unoccluded : shadowed;
+        out.assign(h_.size(), Rgb{});
+        parallelFor(roots, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
+            std::vector<std::pair<int, Rgb>> stack;
+            for (size_t r = b; r < e; ++r) {
+                stack.push_back({int(r), down[r]});
+                while (!stack.empty()) {
+                    auto [ei, above] = stack.back();
+                    stack.pop_back();
+                    Rgb total = above + h_[ei].irradiance;
+                    out[size_t(ei)] = total;
+                    int fc = h_.firstChild(ei);
+                    for (int k = 0; fc >= 0 && k < h_[ei].numChildren; ++k) stack.push_back({fc + k, total});
+                }
+            }
+        });
+    }
+    unoccluded_ = false;
+    for (size_t i = 0; i < h_.size(); ++i) h_[i].B = saved[i];
+    h_.updateClusterFlux();
+    convLinks_ = convLinks;
+    textures_ = textures;
+    groupStart_.clear();
 }
 
 double Solver::sweep(const std::vector<Link>& links) {

@@ -31,6 +31,13 @@ public:
         textures_ = textures;
     }
 
+    // The irradiance each element's links bring straight from the emitters (a gather with every
+    // radiosity set to its emission, pushed down to the leaves), as linked (`shadowed`) and with every
+    // link's visibility taken as 1 (`unoccluded`), for the final gather: it replaces the first by its
+    // exact value at each point and takes the visibility from their ratio. Convolution links are left
+    // out: their light is drawn point by point already. The radiosities are left as they were.
+    void directIrradiance(const std::vector<Link>& links, std::vector<Rgb>& shadowed, std::vector<Rgb>& unoccluded);
+
 private:
     // One gather (irradiance from links) followed by one push/pull; returns the L1 change of B.
     double sweep(const std::vector<Link>& links);
@@ -47,6 +54,7 @@ private:
     std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
     std::vector<std::pair<size_t, size_t>> clusterLinks_;  // link range of each receiving cluster
     double lastReflected_ = 0;
+    bool unoccluded_ = false;  // gather with every link's visibility taken as 1
     const std::vector<ConvolutionLink>* convLinks_ = nullptr;
     const CompleteTextures* textures_ = nullptr;
 };

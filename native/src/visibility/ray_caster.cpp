@@ -1,5 +1,6 @@
 #include "visibility/ray_caster.h"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "visibility/shaft.h"
@@ -124,6 +125,35 @@ bool RayCaster::occluded(const Vec3& from, const Vec3& to) const {
     ray.mask = 0xFFFFFFFF;
     rtcOccluded1(scene_, &ctx, &ray);
     return ray.tfar < 0.0f;
+}
+
+void RayCaster::visibleMask(const Vec3& from, const Vec3* to, int n, char* visible) const {
+    if (numTriangles_ == 0) {
+        std::fill(visible, visible + std::max(n, 0), char(1));
+        return;
+    }
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (int base = 0; base < n; base += 16) {
+        alignas(64) RTCRay16 rays;
+        alignas(64) int valid[16];
+        for (int i = 0; i < 16; ++i) {
+            int k = base + i;
+            valid[i] = k < n ? -1 : 0;
+            Vec3 d = k < n ? to[k] - from : Vec3{0, 0, 1};
+            rays.org_x[i] = float(from.x); rays.org_y[i] = float(from.y); rays.org_z[i] = float(from.z);
+            rays.dir_x[i] = float(d.x); rays.dir_y[i] = float(d.y); rays.dir_z[i] = float(d.z);
+            rays.tnear[i] = 0.0f;
+            rays.tfar[i] = 1.0f;
+            rays.time[i] = 0.0f;
+            rays.mask[i] = 0xFFFFFFFF;
+            rays.id[i] = 0;
+            rays.flags[i] = 0;
+        }
+        rtcOccluded16(valid, scene_, &ctx, &rays);
+        for (int i = 0; i < 16 && base + i < n; ++i) visible[base + i] = rays.tfar[i] >= 0.0f ? 1 : 0;
+    }
 }
 
 double RayCaster::unoccludedFraction(const Vec3* from, const Vec3* to, int n) const {

@@ -22,6 +22,8 @@ public:
     // Fraction of the n segments (from[i], to[i]) that are unblocked; uses 16-wide packets because a
     // link's samples are coherent (measured 2.4x faster than single rays here).
     double unoccludedFraction(const Vec3* from, const Vec3* to, int n) const;
+    // visible[i] = 1 when nothing blocks the open segment (from, to[i]), else 0; 16-wide packets.
+    void visibleMask(const Vec3& from, const Vec3* to, int n, char* visible) const;
     size_t triangles() const { return numTriangles_; }
     // True when no occluding polygon other than the two named ones can cross the shaft between the
     // boxes (Haines-Wallace): every segment between them is then unblocked without casting a ray.
