@@ -109,6 +109,11 @@ Settings parseSettings(const py::dict& d) {
             if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'convolution' must be True or False");
             s.convolution = v.cast<bool>();
         }
+        else if (k == "final_gather") {
+            if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'final_gather' must be True or False");
+            s.finalGather = v.cast<bool>();
+        }
+        else if (k == "gather_rays") s.gatherRays = settingValue<int>(k, v);
         else if (k == "a_min") s.aMin = settingValue<double>(k, v);
         else if (k == "e_max") s.eMax = settingValue<double>(k, v);
         else if (k == "t_max") s.tMax = settingValue<double>(k, v);
@@ -141,6 +146,7 @@ py::dict reportDict(const Report& r) {
     py::dict refused;
     for (auto& [k, v] : r.convolutionRefused) refused[py::str(k)] = v;
     d["convolution_refused"] = refused;
+    d["gather_emitters"] = r.gatherEmitters;
     d["iterations"] = r.iterations;
     d["refine_passes"] = r.refinePasses;
     d["residual"] = r.residual;
