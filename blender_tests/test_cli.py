@@ -84,6 +84,9 @@ def test_cli_exit_codes(empty_scene, tmp_path):
     assert r.returncode == 2 and "must be between 8 and 8192" in r.stderr
     r = _run(blend, "--out", str(tmp_path / "o"), "--resolution", "8193")
     assert r.returncode == 2 and "must be between 8 and 8192, got 8193" in r.stderr
+    # Solver settings stop where the solver does (settings_table.py): 257 rays is a bad option, not a failed bake.
+    r = _run(blend, "--out", str(tmp_path / "o"), "--visibility-rays", "257")
+    assert r.returncode == 2 and "must be in [1, 256], got 257" in r.stderr
     r = _run(blend, "--out", str(tmp_path / "o"), "--targets", "texture")
     assert r.returncode == 2 and "lightmap, color or both" in r.stderr
     # A scene that cannot be baked: no light. The message says what to add; report.json holds it too.

@@ -42,12 +42,12 @@ try:
 except ImportError as _e:
     raise ImportError(_native_mismatch(_e)) from _e
 
-from . import export, writeback, preview as _preview  # noqa: E402
+from . import export, settings_table, writeback, preview as _preview  # noqa: E402
 
 Cancelled = getattr(_native, "Cancelled", None)
 
-SOLVER_KEYS = ("epsilon", "min_size", "visibility_rays", "max_iterations", "tolerance", "refine_passes",
-               "threads", "clustering", "convolution", "a_min", "e_max", "t_max", "max_texture")
+# The solver settings bake() takes, from the one table of settings (settings_table.py).
+SOLVER_KEYS = settings_table.SOLVER_KEYS
 TARGETS = frozenset({"LIGHTMAP", "COLOR_ATTRIBUTE"})
 # The native solver's default memory guard, max_texels, is 8192 x 8192 per lightmap (about 60 bytes a texel
 # while baking, 4 GB at this size); a larger resolution would only be refused after the whole solve.

@@ -14,6 +14,19 @@ import os
 import sys
 import time
 
+try:
+    from . import settings_table
+except ImportError:
+    # Run as a script (blender --python .../penumbra/cli.py): options are parsed before the add-on can be
+    # imported, so the table of settings (plain data) is loaded from the file beside this one.
+    import importlib.util
+    _spec = importlib.util.spec_from_file_location(
+        "_penumbra_cli_settings_table", os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                                     "settings_table.py"))
+    settings_table = importlib.util.module_from_spec(_spec)
+    sys.modules[_spec.name] = settings_table      # dataclasses look their module up while building the class
+    _spec.loader.exec_module(settings_table)
+
 EXIT_OK, EXIT_USAGE, EXIT_SCENE, EXIT_FAILED = 0, 2, 3, 4
 # penumbra.MAX_RESOLUTION, repeated because options are parsed before the add-on can be imported (tested equal).
 MAX_RESOLUTION = 8192
@@ -30,6 +43,23 @@ def _ranged(kind, lo, hi):
                                              f"{text!r}")
         if not (lo <= v <= hi) or v != v:
             raise argparse.ArgumentTypeError(f"must be between {lo} and {hi}, got {text}")
+        return v
+    return parse
+
+
+def _solver_value(setting):
+    """A solver setting's value: refused (exit 2) exactly when the solver would refuse it, with the solver's
+    range from settings_table (which native/python/test_settings_table.py holds equal to the solver's)."""
+    kind = setting.type
+
+    def parse(text):
+        try:
+            v = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a number'}, got "
+                                             f"{text!r}")
+        if not setting.contains(v):
+            raise argparse.ArgumentTypeError(f"must be {setting.describe()}, got {text}")
         return v
     return parse
 
@@ -68,31 +98,15 @@ def parser():
                      help="bake only the objects selected in the file (the others are left out of the solve)")
     sel.add_argument("--all", dest="selection_only", action="store_const", const=False,
                      help="bake every visible mesh object")
-    ap.add_argument("--epsilon", type=_ranged(float, 1e-7, 1.0), metavar="X",
-                    help="refinement threshold, relative to the brightest light (smaller: finer, slower)")
-    ap.add_argument("--min-size", type=_ranged(float, 1e-5, 1.0), metavar="X",
-                    help="smallest patch, relative to the scene's bounding-box diagonal")
-    ap.add_argument("--visibility-rays", type=_ranged(int, 1, 1024), metavar="N",
-                    help="shadow rays per partly hidden link")
-    ap.add_argument("--max-iterations", type=_ranged(int, 1, 100000), metavar="N",
-                    help="upper limit on the light-bounce iterations")
-    ap.add_argument("--tolerance", type=_ranged(float, 1e-9, 0.5), metavar="X",
-                    help="convergence: stop when the light changes by less than this fraction")
-    ap.add_argument("--refine-passes", type=_ranged(int, 1, 16), metavar="N",
-                    help="times the subdivision is revisited once bounced light is known")
-    ap.add_argument("--threads", type=_ranged(int, 0, 1024), metavar="N", help="solver threads (0: all cores)")
-    ap.add_argument("--clustering", action=argparse.BooleanOptionalAction, default=None,
-                    help="group faces into clusters (default: on, or the file's setting)")
-    ap.add_argument("--convolution", action=argparse.BooleanOptionalAction, default=None,
-                    help="shadow textures by convolution where they are accurate enough (default: on)")
-    ap.add_argument("--a-min", type=_ranged(float, 0.0, 1.0), metavar="X",
-                    help="smallest receiver for a shadow texture, relative to the scene's diagonal")
-    ap.add_argument("--e-max", type=_ranged(float, 0.01, 100.0), metavar="X",
-                    help="largest blocker error of a shadow texture, in half the narrowest penumbra")
-    ap.add_argument("--t-max", type=_ranged(float, 1e-4, 60.0), metavar="SECONDS",
-                    help="longest predicted FFT time of one shadow texture")
-    ap.add_argument("--max-texture", type=_ranged(int, 16, 4096), metavar="N",
-                    help="largest shadow texture, texels per side")
+    # One flag per panel setting of the solver, from settings_table (--visibility-rays N, --no-clustering, ...).
+    for s in settings_table.PANEL:
+        if s.type is bool:
+            ap.add_argument(s.flag, action=argparse.BooleanOptionalAction, default=None,
+                            help=f"{s.help} (the panel's {s.label}; default: the file's setting, else "
+                                 f"{'on' if s.default else 'off'})")
+        else:
+            ap.add_argument(s.flag, type=_solver_value(s), metavar=s.metavar or ("N" if s.type is int else "X"),
+                            help=f"{s.help} (the panel's {s.label}; {s.describe()})")
     ap.add_argument("--save", metavar="FILE.blend",
                     help="save the baked .blend here (default: DIR/baked.blend; 'none' to skip)")
     ap.add_argument("--scene", help="scene name (default: the active scene)")
@@ -101,13 +115,10 @@ def parser():
 
 def settings_from(panel, args):
     """The bake settings: the panel's (if the file has them), overridden by the options given."""
-    from penumbra.properties import PRESETS
     s = dict(panel.as_settings()) if panel is not None else {}
     if args.quality:
-        s.update(PRESETS[args.quality.upper()])
-    for key in ("resolution", "margin", "uv_map", "selection_only", "epsilon", "min_size", "visibility_rays",
-                "max_iterations", "tolerance", "refine_passes", "threads", "clustering", "convolution", "a_min",
-                "e_max", "t_max", "max_texture"):
+        s.update(settings_table.PRESETS[args.quality.upper()])
+    for key in ("resolution", "margin", "uv_map", "selection_only") + settings_table.SOLVER_KEYS:
         v = getattr(args, key)
         if v is not None:
             s[key] = v

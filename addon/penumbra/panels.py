@@ -4,7 +4,7 @@ import textwrap
 
 import bpy
 
-from . import operators
+from . import operators, settings_table
 from .writeback import baked_state
 
 MAX_LINES = 8          # skipped objects and warnings listed in the panel; the rest are in the report
@@ -109,24 +109,16 @@ class _Advanced:
         layout.use_property_split = True
         layout.use_property_decorate = False
         s = context.scene.penumbra
-        col = layout.column()
-        col.prop(s, "epsilon")
-        col.prop(s, "min_size")
-        col.prop(s, "visibility_rays")
-        col = layout.column()
-        col.prop(s, "max_iterations")
-        col.prop(s, "tolerance")
-        col.prop(s, "refine_passes")
-        col.prop(s, "threads")
-        col.prop(s, "clustering")
-        col = layout.column(heading="Shadow Textures")
-        col.prop(s, "convolution", text="")
-        sub = col.column()
-        sub.active = s.convolution
-        sub.prop(s, "a_min")
-        sub.prop(s, "e_max")
-        sub.prop(s, "t_max")
-        sub.prop(s, "max_texture")
+        # One column per settings_table.PANEL_GROUPS entry, its settings in the table's order.
+        for group, heading, switch in settings_table.PANEL_GROUPS:
+            col = layout.column(heading=heading)
+            if switch is not None:
+                col.prop(s, switch, text="")
+                col = col.column()
+                col.active = getattr(s, switch)
+            for setting in settings_table.PANEL:
+                if setting.group == group and setting.name != switch:
+                    col.prop(s, setting.name)
 
 
 def _textures(report):

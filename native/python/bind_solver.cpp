@@ -66,18 +66,23 @@ private:
 };
 
 // A wrong type (a string, a float for an integer, an int past 64 bits) is a ValueError naming the key,
-// never pybind11's generic cast error. numpy scalars are accepted like Python numbers.
+// never pybind11's generic cast error. numpy scalars are accepted like Python numbers; a bool setting
+// takes only True or False. Ranges are checked by the solver (validateSettings), from the same table.
 template <class T>
-T settingValue(const std::string& key, py::handle v) {
-    if constexpr (std::is_integral_v<T>) {
+T settingValue(const SettingInfo& info, py::handle v) {
+    const std::string key = info.key;
+    if constexpr (std::is_same_v<T, bool>) {
+        if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting '" + key + "' must be True or False");
+        return v.cast<bool>();
+    } else if constexpr (std::is_integral_v<T>) {
         long long x;
         try {
             x = v.cast<long long>();
         } catch (const py::cast_error&) {
-            throw py::value_error("setting '" + key + "' must be an integer within range");
+            throw py::value_error("setting '" + key + "' must be an integer " + info.describe(true));
         }
         if (x < 0 || (sizeof(T) < sizeof(long long) && x > (long long)std::numeric_limits<T>::max()))
-            throw py::value_error("setting '" + key + "' is out of range");
+            throw py::value_error("setting '" + key + "' is out of range: it must be " + info.describe(true));
         return T(x);
     } else {
         try {
@@ -88,43 +93,52 @@ T settingValue(const std::string& key, py::handle v) {
     }
 }
 
+// Keys, types and ranges come from PENUMBRA_SETTINGS (solve/settings.h): a setting added there is parsed.
 Settings parseSettings(const py::dict& d) {
     Settings s;
     for (auto item : d) {
         if (!py::isinstance<py::str>(item.first)) throw py::value_error("setting keys must be strings");
         std::string k = py::str(item.first);
-        py::handle v = item.second;
-        if (k == "epsilon") s.epsilon = settingValue<double>(k, v);
-        else if (k == "min_size") s.minSize = settingValue<double>(k, v);
-        else if (k == "visibility_rays") s.visibilityRays = settingValue<int>(k, v);
-        else if (k == "max_iterations") s.maxIterations = settingValue<int>(k, v);
-        else if (k == "tolerance") s.tolerance = settingValue<double>(k, v);
-        else if (k == "refine_passes") s.refinePasses = settingValue<int>(k, v);
-        else if (k == "threads") s.threads = settingValue<int>(k, v);
-        else if (k == "clustering") {
-            if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'clustering' must be True or False");
-            s.clustering = v.cast<bool>();
-        }
-        else if (k == "convolution") {
-            if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'convolution' must be True or False");
-            s.convolution = v.cast<bool>();
-        }
-        else if (k == "final_gather") {
-            if (!py::isinstance<py::bool_>(v)) throw py::value_error("setting 'final_gather' must be True or False");
-            s.finalGather = v.cast<bool>();
-        }
-        else if (k == "gather_rays") s.gatherRays = settingValue<int>(k, v);
-        else if (k == "a_min") s.aMin = settingValue<double>(k, v);
-        else if (k == "e_max") s.eMax = settingValue<double>(k, v);
-        else if (k == "t_max") s.tMax = settingValue<double>(k, v);
-        else if (k == "max_texture") s.maxTexture = settingValue<int>(k, v);
-        else if (k == "max_elements") s.maxElements = settingValue<size_t>(k, v);
-        else if (k == "max_links") s.maxLinks = settingValue<size_t>(k, v);
-        else if (k == "max_face_pairs") s.maxFacePairs = settingValue<double>(k, v);
-        else if (k == "max_texels") s.maxTexels = settingValue<size_t>(k, v);
-        else throw py::value_error("unknown setting '" + k + "'");
+        bool known = false;
+        forEachSetting(s, [&](const SettingInfo& info, auto& member) {
+            if (known || k != info.key) return;
+            known = true;
+            member = settingValue<std::decay_t<decltype(member)>>(info, item.second);
+        });
+        if (!known) throw py::value_error("unknown setting '" + k + "'");
     }
     return s;
+}
+
+// _native.SETTINGS: the solver's table as a list of dicts {"name", "type" ("float", "int" or "bool"),
+// "default", "range" (None for bool, else (lo, min, max, hi) as in settings.h, float('inf') for no
+// bound)}. native/python/test_settings_table.py compares it with the add-on's settings_table.py.
+py::list settingsTable() {
+    py::list table;
+    const Settings defaults;
+    forEachSetting(defaults, [&](const SettingInfo& info, const auto& value) {
+        using T = std::decay_t<decltype(value)>;
+        py::dict e;
+        e["name"] = info.key;
+        if constexpr (std::is_same_v<T, bool>) {
+            e["type"] = "bool";
+            e["default"] = py::bool_(value);
+            e["range"] = py::none();
+        } else {
+            constexpr bool integer = std::is_integral_v<T>;
+            auto bound = [&](double b) -> py::object {
+                if (integer && std::isfinite(b)) return py::int_((long long)b);
+                return py::float_(b);
+            };
+            e["type"] = integer ? "int" : "float";
+            if constexpr (integer) e["default"] = py::int_((long long)value);
+            else e["default"] = py::float_(value);
+            e["range"] = py::make_tuple(std::string(1, info.lo), bound(info.min), bound(info.max),
+                                        std::string(1, info.hi));
+        }
+        table.append(e);
+    });
+    return table;
 }
 
 py::dict reportDict(const Report& r) {
@@ -177,6 +191,7 @@ void bindSolver(py::module_& m) {
             PyErr_SetString(PyExc_ValueError, e.what());
         }
     });
+    m.attr("SETTINGS") = settingsTable();
     m.attr("EMIT_BACK") = int(kEmitBack);
     m.attr("LIGHT_ONLY") = int(kLightOnly);
 

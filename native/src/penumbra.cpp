@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <type_traits>
 
 #include "refine/refiner.h"
 #include "solve/solver.h"
@@ -25,24 +26,16 @@ private:
     std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
+// Every range comes from the table in solve/settings.h; the Python parser refuses wrong types before.
 void validateSettings(const Settings& s) {
-    auto bad = [](const std::string& m) { throw InputError("setting " + m); };
-    if (!(s.epsilon > 0) || !std::isfinite(s.epsilon)) bad("epsilon must be a positive number");
-    if (!(s.minSize > 0) || !(s.minSize < 1)) bad("min_size must be in (0, 1)");
-    if (s.visibilityRays < 1 || s.visibilityRays > 256) bad("visibility_rays must be in [1, 256]");
-    if (s.maxIterations < 1) bad("max_iterations must be at least 1");
-    if (!(s.tolerance > 0) || !(s.tolerance < 1)) bad("tolerance must be in (0, 1)");
-    if (s.refinePasses < 1 || s.refinePasses > 20) bad("refine_passes must be in [1, 20]");
-    if (s.threads < 0 || s.threads > 1024) bad("threads must be in [0, 1024]");
-    if (s.maxElements < 1 || s.maxElements > (size_t(1) << 30)) bad("max_elements must be in [1, 2^30]");
-    if (s.maxLinks < 1) bad("max_links must be at least 1");
-    if (!(s.maxFacePairs >= 1)) bad("max_face_pairs must be at least 1");
-    if (s.maxTexels < 1) bad("max_texels must be at least 1");
-    if (!(s.aMin >= 0) || !std::isfinite(s.aMin)) bad("a_min must be a number >= 0");
-    if (!(s.eMax > 0) || !std::isfinite(s.eMax)) bad("e_max must be a positive number");
-    if (!(s.tMax > 0) || !std::isfinite(s.tMax)) bad("t_max must be a positive number");
-    if (s.maxTexture < 16 || s.maxTexture > 4096) bad("max_texture must be in [16, 4096]");
-    if (s.gatherRays < 0 || s.gatherRays > 256) bad("gather_rays must be in [0, 256]");
+    forEachSetting(s, [](const SettingInfo& info, const auto& value) {
+        using T = std::decay_t<decltype(value)>;
+        if constexpr (!std::is_same_v<T, bool>) {
+            if (!info.contains(double(value)))
+                throw InputError(std::string("setting ") + info.key + " must be " +
+                                 info.describe(std::is_integral_v<T>));
+        }
+    });
 }
 
 void sortLinks(std::vector<Link>& links) {

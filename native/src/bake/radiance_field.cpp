@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hierarchy/predicates.h"
+
 namespace penumbra {
 
 namespace {
@@ -62,9 +64,7 @@ void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured, c
     // double rounding here. Anything further off a leaf's plane is another surface: a face 1 mm above a
     // floor is a different surface however coarse the floor's leaves are, so this does not grow with
     // the leaf.
-    Vec3 far = vmax(vmax(sc.bounds.lo + sc.offset, -(sc.bounds.lo + sc.offset)),
-                    vmax(sc.bounds.hi + sc.offset, -(sc.bounds.hi + sc.offset)));
-    double onPlane = 1e-5 * diagonal_ + 4.0 * std::ldexp(maxComponent(far), -23);
+    double onPlane = 1e-5 * diagonal_ + float32Rounding(sc);
     std::vector<double> thickness = faceThickness(sc);
     polyTol_.assign(sc.polygons.size(), 0.0);
     std::vector<Bounds> polyBoxes;

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <map>
 
+#include "hierarchy/predicates.h"
+
 namespace penumbra {
 namespace {
 
@@ -32,9 +34,7 @@ ClusterTree::ClusterTree(const Scene& scene) {
     std::vector<int> items;
     for (size_t i = 0; i < scene.polygons.size(); ++i) {
         const ScenePolygon& p = scene.polygons[i];
-        bool receives = p.receives && maxComponent(p.rho) > 0;
-        bool sends = maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0;
-        if (receives || sends) items.push_back(int(i));
+        if (receivesLight(p) || sendsLight(p)) items.push_back(int(i));
     }
     if (items.empty()) return;
     clusters_.emplace_back();
@@ -149,7 +149,7 @@ void ClusterTree::finish(const Scene& scene, int c) {
         cl.box.extend(polygonBox(p));
         cl.area += p.area;
         if (p.receives) cl.rhoMax = std::max(cl.rhoMax, maxComponent(p.rho));
-        cl.sends |= maxComponent(p.emission) > 0 || maxComponent(p.rho) > 0;
+        cl.sends |= sendsLight(p);
     }
     cl.center = cl.box.center();
     cl.radius = 0.5 * length(cl.box.diagonal());

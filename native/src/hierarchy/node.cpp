@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#include "hierarchy/predicates.h"
+
 namespace penumbra {
 namespace {
-
-// A cluster is in its far field beyond 1 / kNearField of its radius: the centre's direction then
-// stands for every face's to within about 12 degrees.
-constexpr double kNearField = 0.2;
 
 double boxDistance(const Bounds& a, const Bounds& b) {
     double d2 = 0;
@@ -53,7 +51,7 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     double r2 = length2(d);
     if (r2 <= 0) return {};
     double r = std::sqrt(r2);
-    if (c.radius > kNearField * r) {
+    if (c.radius > kFarField * r) {  // not in its far field (predicates.h)
         // Near a cluster its faces see y from different directions, and a face that the centre's
         // direction puts at grazing incidence may still light y: face by face, each from its centre.
         Rgb sum;

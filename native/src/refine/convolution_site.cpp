@@ -9,6 +9,7 @@
 #include "convolution/cost_model.h"
 #include "geometry/polygon.h"
 #include "hierarchy/node.h"
+#include "hierarchy/predicates.h"
 #include "visibility/shaft.h"
 
 namespace penumbra {
@@ -23,8 +24,6 @@ constexpr int kDisplayFactor = 8;
 constexpr double kPartRatio = 0.125;
 constexpr int kMaxParts = 4;  // texels per side of a multi-face source's emission image
 
-bool emits(const ScenePolygon& p) { return maxComponent(p.emission) > 0; }
-bool sendsLight(const ScenePolygon& p) { return emits(p) || maxComponent(p.rho) > 0; }
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
 // then no longer hangs on an object resting exactly on the other, nor on float32 rounding.
@@ -157,9 +156,7 @@ ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, co
     tol_ = 1e-3 * sc.diagonal;
     // Lying in a plane is a matter of float32 rounding of the caller's coordinates (a few ulps of the
     // largest, large for a scene far from the origin), not of tol_: a tile 0.1 mm under a lamp blocks it.
-    Vec3 far = vmax(vmax(sc.bounds.lo + sc.offset, -(sc.bounds.lo + sc.offset)),
-                    vmax(sc.bounds.hi + sc.offset, -(sc.bounds.hi + sc.offset)));
-    planeTol_ = 1e-6 * sc.diagonal + 4.0 * std::ldexp(maxComponent(far), -23);
+    planeTol_ = 1e-6 * sc.diagonal + float32Rounding(sc);
     const ClusterTree& ct = h.clusters();
     planar_.assign(ct.size(), 0);
     hasEmitter_.assign(ct.size(), 0);
@@ -194,7 +191,7 @@ bool ConvolutionSites::receiverCandidate(int r) const {
     } else {
         if (size_t(r) >= h_.numRoots()) return false;  // receivers are whole polygons or clusters
         const ScenePolygon& p = sc.polygons[size_t(r)];
-        if (!p.receives || !(maxComponent(p.rho) > 0)) return false;
+        if (!receivesLight(p)) return false;
         b = nodeBox(h_, r);
     }
     return length(b.diagonal()) >= settings_.aMin * sc.diagonal;
@@ -393,7 +390,7 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     out->source = s;
     out->receiverPolygons.clear();
     for (int p : rpolys)
-        if (sc.polygons[size_t(p)].receives && maxComponent(sc.polygons[size_t(p)].rho) > 0)
+        if (receivesLight(sc.polygons[size_t(p)]))
             out->receiverPolygons.push_back(p);
     out->sourcePolygons = faces;
     out->blockerTriangles = int(tris.size());

@@ -1,41 +1,105 @@
 // The user's knobs. Thresholds are relative (to the brightest emitter, to the scene's size) so that
 // a scene baked in millimetres or kilometres refines the same way.
+//
+// PENUMBRA_SETTINGS is the solver's one list of settings. Each X(type, member, key, default, lo, min,
+// max, hi) line gives the Settings member, its key in the Python settings dict, its default and the
+// range the solver accepts, written as an interval: lo is '[' or '(', hi is ']' or ')'; an open bound
+// refuses the bound itself, so "(0, kNoBound)" is any finite number above 0 and "[1, kNoBound]" also
+// takes infinity. The struct's members, validateSettings (penumbra.cpp), the Python binding's parser
+// and its exported table `_native.SETTINGS` all come from this list, so they cannot disagree.
+//
+// The add-on's table, addon/penumbra/settings_table.py, holds the same names, defaults and ranges plus
+// what only the UI needs (label, help, panel group); the panel's properties, the CLI's flags and
+// penumbra.bake()'s keywords are built from it. native/python/test_settings_table.py fails when the
+// two tables differ. Adding a setting is one X(...) line here and one Setting(...) entry there.
 #pragma once
 #include <cstddef>
+#include <limits>
+#include <string>
 
 namespace penumbra {
 
+inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
+
+// clang-format off
+#define PENUMBRA_SETTINGS(X)                                                                               \
+    /* max radiosity error of a link, relative to the brightest emitter */                                  \
+    X(double, epsilon, "epsilon", 0.0002, '(', 0, kNoBound, ')')                                           \
+    /* smallest element edge, relative to the scene's bounding-box diagonal */                              \
+    X(double, minSize, "min_size", 0.01, '(', 0, 1, ')')                                                   \
+    /* rays per link estimate (rounded to a square number of strata) */                                     \
+    X(int, visibilityRays, "visibility_rays", 16, '[', 1, 256, ']')                                        \
+    /* sweeps per refinement pass; albedo 0.99 needs ~1000 for 1e-4 */                                      \
+    X(int, maxIterations, "max_iterations", 5000, '[', 1, std::numeric_limits<int>::max(), ']')            \
+    /* stop when the estimated remaining relative error falls below this */                                 \
+    X(double, tolerance, "tolerance", 1e-4, '(', 0, 1, ')')                                                \
+    /* refine -> solve rounds (later passes refine with indirect light) */                                  \
+    X(int, refinePasses, "refine_passes", 3, '[', 1, 20, ']')                                              \
+    /* 0: all cores */                                                                                      \
+    X(int, threads, "threads", 0, '[', 0, 1024, ']')                                                       \
+    /* refine from one root <-> root cluster link instead of all face pairs */                              \
+    X(bool, clustering, "clustering", true, '[', 0, 1, ']')                                                \
+    /* Convolution links (Soler & Sillion 1998, Fig. 4): a large planar receiver lit by a planar emitter     \
+       through blockers gets one soft shadow texture instead of a subdivided mesh of standard links. */     \
+    X(bool, convolution, "convolution", true, '[', 0, 1, ']')                                              \
+    /* smallest receiver for a convolution link: box diagonal / scene diagonal */                           \
+    X(double, aMin, "a_min", 0.15, '[', 0, kNoBound, ')')                                                  \
+    /* largest blocker error E_rr of a convolution link, in texels of half the narrowest penumbra */        \
+    X(double, eMax, "e_max", 1.0, '(', 0, kNoBound, ')')                                                   \
+    /* largest predicted FFT time of one convolution link, seconds */                                       \
+    X(double, tMax, "t_max", 0.05, '(', 0, kNoBound, ')')                                                  \
+    /* largest soft shadow texture, texels per side */                                                      \
+    X(int, maxTexture, "max_texture", 512, '[', 16, 4096, ']')                                             \
+    /* Final gather: the emitters' light is evaluated exactly at every bake point (form factor times         \
+       visibility) instead of read from the elements; the hierarchy carries the reflected remainder. */     \
+    X(bool, finalGather, "final_gather", true, '[', 0, 1, ']')                                             \
+    /* Visibility of the gathered light: 0 takes it from the hierarchy's links (their shadowed over         \
+       unoccluded light, blended like the radiosity); N > 0 casts up to N rays per emitter group and        \
+       point to fixed Sobol' points (exact in full light and umbra, but a detailed shadow such as a         \
+       lattice shade needs hundreds: 4.8 % RMS with 64, 1.6 % with 256, against 0.9 % from the links). */  \
+    X(int, gatherRays, "gather_rays", 0, '[', 0, 256, ']')                                                 \
+    /* Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,         \
+       instead of being killed by the system (or, for face pairs, running for hours). */                    \
+    /* quadtree elements, ~400 bytes each at the peak (canonicalize) */                                     \
+    X(size_t, maxElements, "max_elements", 2000000, '[', 1, size_t(1) << 30, ']')                          \
+    /* links, ~72 bytes each at the peak (per-thread lists, merge, sort) */                                 \
+    X(size_t, maxLinks, "max_links", 30000000, '[', 1, kNoBound, ']')                                      \
+    /* receiver x source face pairs linkAll visits without clustering */                                    \
+    X(double, maxFacePairs, "max_face_pairs", 1e9, '[', 1, kNoBound, ']')                                  \
+    /* one bake_lightmap call, ~60 bytes each */                                                            \
+    X(size_t, maxTexels, "max_texels", size_t(8192) * 8192, '[', 1, kNoBound, ']')
+// clang-format on
+
 struct Settings {
-    double epsilon = 0.0002;      // max radiosity error of a link, relative to the brightest emitter
-    double minSize = 0.01;       // smallest element edge, relative to the scene's bounding-box diagonal
-    int visibilityRays = 16;     // rays per link estimate (rounded to a square number of strata)
-    int maxIterations = 5000;    // sweeps per refinement pass; albedo 0.99 needs ~1000 for 1e-4
-    double tolerance = 1e-4;     // stop when the estimated remaining relative error falls below this
-    int refinePasses = 3;        // refine -> solve rounds (later passes refine with indirect light)
-    int threads = 0;             // 0: all cores
-    bool clustering = true;      // refine from one root <-> root cluster link instead of all face pairs
-    // Convolution links (Soler & Sillion 1998, Fig. 4): a large planar receiver lit by a planar emitter
-    // through blockers gets one soft shadow texture instead of a subdivided mesh of standard links.
-    bool convolution = true;
-    double aMin = 0.15;          // smallest receiver for a convolution link: box diagonal / scene diagonal
-    double eMax = 1.0;           // largest blocker error E_rr of a convolution link, in texels of half the narrowest penumbra
-    double tMax = 0.05;          // largest predicted FFT time of one convolution link, seconds
-    int maxTexture = 512;        // largest soft shadow texture, texels per side
-    // Final gather: the emitters' light is evaluated exactly at every bake point (form factor times
-    // visibility) instead of read from the elements; the hierarchy carries the reflected remainder.
-    bool finalGather = true;
-    // Visibility of the gathered light: 0 takes it from the hierarchy's links (their shadowed over
-    // unoccluded light, blended like the radiosity); N > 0 casts up to N rays per emitter group and
-    // point to fixed low-discrepancy points (exact in full light and umbra, but a detailed shadow
-    // such as a lattice shade needs hundreds: 4.8 % RMS with 64, 1.6 % with 256, against 0.9 % from
-    // the links).
-    int gatherRays = 0;
-    // Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,
-    // instead of being killed by the system (or, for face pairs, running for hours).
-    size_t maxElements = 2000000;    // quadtree elements, ~400 bytes each at the peak (canonicalize)
-    size_t maxLinks = 30000000;      // links, ~72 bytes each at the peak (per-thread lists, merge, sort)
-    double maxFacePairs = 1e9;       // receiver x source face pairs linkAll visits without clustering
-    size_t maxTexels = size_t(8192) * 8192;  // one bake_lightmap call, ~60 bytes each
+#define PENUMBRA_SETTING_MEMBER(type, member, key, value, lo, min, max, hi) type member = value;
+    PENUMBRA_SETTINGS(PENUMBRA_SETTING_MEMBER)
+#undef PENUMBRA_SETTING_MEMBER
 };
+
+// One row of the table without its value: the key and the accepted interval.
+struct SettingInfo {
+    const char* key;
+    char lo;     // '[' or '('
+    double min;
+    double max;  // kNoBound: no upper limit
+    char hi;     // ']' or ')'
+
+    bool contains(double x) const {  // false for NaN
+        return (lo == '(' ? x > min : x >= min) && (hi == ')' ? x < max : x <= max);
+    }
+    // "in [1, 256]", "in (0, 1)", "a finite number > 0", "at least 1": what an error message says
+    // the value must be. settings_table.describe() in the add-on writes the same words.
+    std::string describe(bool integer) const;
+};
+
+// Calls f(info, member) for every setting of s, in the table's order; member is a reference to the
+// field (const when s is), so one walk validates, parses or exports.
+template <class S, class F>
+void forEachSetting(S& s, F&& f) {
+#define PENUMBRA_SETTING_VISIT(type, member, key, value, lo, min, max, hi) \
+    f(SettingInfo{key, lo, double(min), double(max), hi}, s.member);
+    PENUMBRA_SETTINGS(PENUMBRA_SETTING_VISIT)
+#undef PENUMBRA_SETTING_VISIT
+}
 
 }  // namespace penumbra

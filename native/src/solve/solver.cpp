@@ -26,7 +26,6 @@ void Solver::gather(const std::vector<Link>& links) {
         prepareClusters(links);
     }
     for (size_t i = 0; i < h_.size(); ++i) h_[i].irradiance = Rgb{};
-    const ClusterTree& ct = h_.clusters();
     h_.updateClusterFlux();
     size_t groups = groupStart_.size() - 1;
     const Scene& sc = h_.scene();
