@@ -143,7 +143,8 @@ class Job:
         report["solver"] = native_report
         for key in ("polygons", "elements", "leaves", "links", "rays", "iterations", "residual",
                     "refine_passes", "clusters", "cluster_links", "shafts_clear", "convolution_links",
-                    "convolution_tried", "convolution_refused", "convolution_texels", "convolution_max_error"):
+                    "convolution_tried", "convolution_refused", "convolution_texels", "convolution_max_error",
+                    "error_estimate", "gather_emitters"):
             if key in native_report:
                 report[key] = native_report[key]
         report["warnings"] += [f"solver: {w}" for w in native_report.get("warnings", [])]

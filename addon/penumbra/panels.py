@@ -121,6 +121,19 @@ class _Advanced:
                     col.prop(s, setting.name)
 
 
+def _estimate(report):
+    """The solver's own estimate of the bake's relative RMS error, and the object where it is largest."""
+    est = report.get("error_estimate")
+    if not isinstance(est, dict) or not isinstance(est.get("overall"), (int, float)):
+        return "?"
+    text = f"{100 * est['overall']:.1f} %"
+    objects = est.get("objects") or {}
+    if objects:
+        worst = max(objects, key=objects.get)
+        text += f" (worst {worst}: {100 * objects[worst]:.1f} %)"
+    return text
+
+
 def _textures(report):
     """Convolution links made, and how many candidate pairs were left to ordinary refinement."""
     made = report.get("convolution_links")
@@ -157,6 +170,7 @@ class _Report:
                  else "?"),
                 ("Links", f"{report.get('links', '?'):,}" if isinstance(report.get('links'), int) else "?"),
                 ("Shadow textures", _textures(report)),
+                ("Estimated error", _estimate(report)),
                 ("Iterations", f"{report.get('iterations', '?')}"),
                 ("Residual", f"{report['residual']:.2e}" if isinstance(report.get("residual"), (int, float))
                  else "?")]

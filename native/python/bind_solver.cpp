@@ -141,7 +141,7 @@ py::list settingsTable() {
     return table;
 }
 
-py::dict reportDict(const Report& r) {
+py::dict reportDict(const Report& r, const std::vector<std::string>& names) {
     py::dict d, times;
     for (auto& [k, v] : r.seconds) times[py::str(k)] = v;
     d["times"] = times;
@@ -161,6 +161,12 @@ py::dict reportDict(const Report& r) {
     for (auto& [k, v] : r.convolutionRefused) refused[py::str(k)] = v;
     d["convolution_refused"] = refused;
     d["gather_emitters"] = r.gatherEmitters;
+    py::dict est, perObject;
+    for (size_t o = 0; o < r.objectErrorEstimate.size() && o < names.size(); ++o)
+        if (r.objectErrorEstimate[o] >= 0) perObject[py::str(names[o])] = r.objectErrorEstimate[o];
+    est["overall"] = r.errorEstimate;
+    est["objects"] = perObject;
+    d["error_estimate"] = est;
     d["iterations"] = r.iterations;
     d["refine_passes"] = r.refinePasses;
     d["residual"] = r.residual;
@@ -196,7 +202,7 @@ void bindSolver(py::module_& m) {
     m.attr("LIGHT_ONLY") = int(kLightOnly);
 
     py::class_<Solution, std::shared_ptr<Solution>>(m, "Solution")
-        .def_property_readonly("report", [](const Solution& s) { return reportDict(s.report()); })
+        .def_property_readonly("report", [](const Solution& s) { return reportDict(s.report(), s.scene().objectNames); })
         .def_property_readonly("convolution_links",
              [](const Solution& s) {
                  py::list out;

@@ -6,6 +6,7 @@
 #include <type_traits>
 
 #include "refine/refiner.h"
+#include "solve/error_estimate.h"
 #include "solve/solver.h"
 #include "util/parallel.h"
 #include "visibility/ray_caster.h"
@@ -99,6 +100,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     for (int pass = 1; pass < settings.refinePasses; ++pass) {
         bool changed = false;
         h.updateClusterFlux();
+        h.updateRadiosityDeviation();
         links = refiner.rerefine(links, progress, changed);
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();
@@ -138,6 +140,9 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         sol->field_ = conv.empty() ? RadianceField(h)
                                    : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
     }
+    ErrorEstimate est = estimateError(h, links, settings, res.residual);
+    rep.errorEstimate = est.overall;
+    rep.objectErrorEstimate = est.perObject;
     rep.seconds["reconstruct"] = clock.lap();
     rep.elements = h.size();
     rep.leaves = h.countLeaves();

@@ -26,6 +26,10 @@ struct Report {
     size_t convolutionLinks = 0, convolutionTried = 0, convolutionTexels = 0;
     std::map<std::string, size_t> convolutionRefused;
     double convolutionMaxError = 0;
+    // Estimated relative RMS error of the reflected radiance (solve/error_estimate.h), overall and per
+    // object (by object index, -1 where an object receives nothing).
+    double errorEstimate = 0;
+    std::vector<double> objectErrorEstimate;
     size_t gatherEmitters = 0;  // emitting faces the final gather evaluates at every bake point
     int iterations = 0, refinePasses = 0;
     double residual = 0;

@@ -1,5 +1,7 @@
 #include "hierarchy/element.h"
 
+#include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -174,6 +176,27 @@ size_t Hierarchy::countLeaves() const {
     size_t n = 0;
     for (size_t i = 0; i < size(); ++i) n += (*this)[i].isLeaf();
     return n;
+}
+
+void Hierarchy::updateRadiosityDeviation() {
+    // Canonical order puts every child after its parent: one backward sweep gathers each subtree's
+    // range of leaf radiosities.
+    size_t n = size();
+    std::vector<float> lo(n), hi(n);
+    for (size_t i = 0; i < n; ++i) {
+        lo[i] = HUGE_VALF;
+        hi[i] = -HUGE_VALF;
+    }
+    for (size_t k = n; k-- > 0;) {
+        Element& e = (*this)[k];
+        float b = float(maxComponent(e.B));
+        if (e.isLeaf()) lo[k] = hi[k] = b;
+        e.Bdev = std::max(0.0f, std::max(hi[k] - b, b - lo[k]));
+        if (e.parent >= 0) {
+            lo[size_t(e.parent)] = std::min(lo[size_t(e.parent)], lo[k]);
+            hi[size_t(e.parent)] = std::max(hi[size_t(e.parent)], hi[k]);
+        }
+    }
 }
 
 }  // namespace penumbra

@@ -27,6 +27,9 @@ struct Element {
     double area = 0;
     Rgb B;                  // radiosity (exitance), W/m^2
     Rgb irradiance;         // gathered at this level from its links
+    // Largest difference, over the leaves below, between a leaf's radiosity and this element's (max
+    // channel): how far this element's one value misrepresents the light it sends.
+    float Bdev = 0;
 
     bool isLeaf() const { return firstChild.load(std::memory_order_acquire) < 0; }
     Polygon polygonShape() const;
@@ -58,6 +61,8 @@ public:
     // Creates the children of e if it has none (thread-safe) and returns the first child's index.
     int subdivide(int e);
     int firstChild(int e) const { return (*this)[e].firstChild.load(std::memory_order_acquire); }
+    // Sets every element's Bdev from the current radiosities (elements in canonical order).
+    void updateRadiosityDeviation();
 
     // Renumbers all elements in depth-first order from the roots so that indices do not depend on
     // which thread created what. Returns old index -> new index.

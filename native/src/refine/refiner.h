@@ -38,6 +38,8 @@ public:
 
     // Radiosity error a link can cause on its receiver (W/m^2, max over colour channels).
     double linkError(const Link& l) const;
+    // The part of it that comes from a partly hidden source's radiosity varying below it.
+    double sourceDeviationError(const Link& l) const;
     double threshold() const { return threshold_; }
     const RefineStats& stats() const { return stats_; }
     // Convolution links made so far, in (receiver, source) order; they stand for whole transfers and
@@ -67,6 +69,10 @@ private:
     bool estimateUnoccluded(int r, int s, Link& l);
     void estimateVisibility(int r, int s, Link& l);
     bool canSplit(int e) const;
+    // A point of element e's leaves, chosen by their share of its light B * area (u in [0, 1)).
+    Vec3 pointByLight(int e, double u, double s, double t) const;
+    // e has children that existed, with radiosities, before this refinement pass.
+    bool hasSettledChildren(int e) const;
     void keep(const Link& l, std::vector<Link>& out);  // appends, within settings_.maxLinks
     // Fig. 4: a significant transfer onto a large planar receiver through blockers becomes one
     // convolution link; true when it did.
@@ -81,6 +87,7 @@ private:
     int strata_;   // visibility rays = strata_^2
     RefineStats stats_;
     std::atomic<size_t> linkCount_{0};  // links in the list being built
+    size_t settled_ = 0;                 // elements at the start of this pass (0 in the first)
     std::unique_ptr<ConvolutionSites> sites_;  // null with convolution off
     mutable std::mutex convMutex_;
     std::vector<ConvolutionLink> conv_;

@@ -1,0 +1,85 @@
+#include "solve/error_estimate.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "hierarchy/node.h"
+
+namespace penumbra {
+
+ErrorEstimate estimateError(const Hierarchy& h, const std::vector<Link>& links, const Settings& s,
+                            double residual) {
+    const Scene& sc = h.scene();
+    const ClusterTree& ct = h.clusters();
+    const double rms12 = 1 / std::sqrt(12.0);
+    const int m = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
+    const double n = std::min(256, m * m);
+    std::vector<double> own(h.size(), 0.0), cluster(ct.size(), 0.0);
+    for (const Link& l : links) {
+        double rho = isClusterNode(l.receiver) ? ct[clusterIndex(l.receiver)].rhoMax
+                                               : maxComponent(sc.polygons[h[l.receiver].polygon].rho);
+        if (!(rho > 0)) continue;
+        double e2 = 0;
+        if (isClusterNode(l.receiver) || isClusterNode(l.source)) {
+            if (l.V <= 0) continue;
+            double e = rho * fluxBound(h, l.source, nodeBox(h, l.receiver)) * rms12;
+            e2 = std::isfinite(e) ? e * e : 0.0;
+        } else {
+            const Element& src = h[l.source];
+            double B = maxComponent(src.B);
+            double R = s.finalGather ? maxComponent(vmax(Rgb{}, src.B - sc.polygons[src.polygon].emission)) : B;
+            double spread = rho * R * l.Fspread * rms12;
+            e2 = spread * spread;
+            if (l.partial()) {
+                double v = double(l.V) * (1 - double(l.V));
+                double shadow = rho * B * l.Fmean;
+                e2 += shadow * shadow * v * (0.25 + 1 / n);
+            }
+        }
+        if (isClusterNode(l.receiver))
+            cluster[size_t(clusterIndex(l.receiver))] += e2;
+        else
+            own[size_t(l.receiver)] += e2;
+    }
+    size_t objects = sc.objectNames.size();
+    std::vector<double> err(objects, 0.0), sig(objects, 0.0);
+    double errAll = 0, sigAll = 0;
+    size_t roots = h.numRoots();
+    std::vector<std::pair<int, double>> stack;
+    for (size_t r = 0; r < roots; ++r) {
+        const ScenePolygon& p = sc.polygons[r];
+        if (!p.receives || !(maxComponent(p.rho) > 0)) continue;
+        double above = 0;
+        if (!ct.empty() && !h.buried(int(r)))
+            for (int c = ct.owner(int(r)); c >= 0; c = ct[c].parent) above += cluster[size_t(c)];
+        stack.push_back({int(r), above});
+        while (!stack.empty()) {
+            auto [e, acc] = stack.back();
+            stack.pop_back();
+            double total = acc + own[size_t(e)];
+            int fc = h.firstChild(e);
+            if (fc >= 0) {
+                for (int k = 0; k < h[e].numChildren; ++k) stack.push_back({fc + k, total});
+                continue;
+            }
+            const Element& leaf = h[e];
+            double L = maxComponent(vmax(Rgb{}, leaf.B - p.emission));
+            double e2 = total + residual * residual * L * L;
+            size_t o = size_t(std::max(p.object, 0));
+            if (o < objects) {
+                err[o] += leaf.area * e2;
+                sig[o] += leaf.area * L * L;
+            }
+            errAll += leaf.area * e2;
+            sigAll += leaf.area * L * L;
+        }
+    }
+    ErrorEstimate out;
+    out.perObject.assign(objects, -1.0);
+    for (size_t o = 0; o < objects; ++o)
+        if (sig[o] > 0) out.perObject[o] = std::sqrt(err[o] / sig[o]);
+    out.overall = sigAll > 0 ? std::sqrt(errAll / sigAll) : 0.0;
+    return out;
+}
+
+}  // namespace penumbra
