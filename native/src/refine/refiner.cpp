@@ -211,6 +211,16 @@ void Refiner::estimateVisibility(int ri, int si, Link& l) {
     l.F = l.Fmean * l.V;
 }
 
+double Refiner::gradientError(const Link& l) const {
+    if (isClusterNode(l.source) || isClusterNode(l.receiver) || !hasSettledChildren(l.source)) return 0;
+    // The kernel varies across the source by about its size over its distance; times how far its
+    // parts' radiosities stray from the one value the link uses.
+    const Element& s = h_[l.source];
+    double d = length(s.center - h_[l.receiver].center);
+    double var = d > 0 ? std::min(1.0, std::sqrt(s.area) / d) : 1.0;
+    return receiverRho(l.receiver) * double(s.Bdev) * double(l.Fmean) * var;
+}
+
 bool Refiner::hasSettledChildren(int e) const {
     // Children made during this pass (by other threads, splitting e as a receiver) have no radiosity
     // of their own yet, and whether they exist depends on thread timing.
@@ -408,8 +418,16 @@ void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
     if (!estimateUnoccluded(ri, si, l)) return;
     bool canR = canSplit(ri), canS = canSplit(si);
     // The kernel is integrated exactly over the source (Lambert's formula), so an unoccluded transfer
-    // only errs through the irradiance varying across the receiver: only splitting the receiver
-    // reduces that. Splitting the source instead would just share the same error among more links.
+    // of a uniform source only errs through the irradiance varying across the receiver: only
+    // splitting the receiver reduces that. A source whose parts differ in radiosity (a ceiling bright
+    // only over a lamp) errs by how its light and the kernel are distributed over it, which only
+    // linking its parts reduces; they exist already (it was split as a receiver).
+    double dev = gradientError(l);
+    if (dev > threshold_ && dev >= linkError(l) && hasSettledChildren(si)) {
+        int c = h_.firstChild(si);
+        for (int k = 0; k < h_[si].numChildren; ++k) refine(ri, c + k, out);
+        return;
+    }
     if (linkError(l) > threshold_ && canR) {
         int c = h_.subdivide(ri);
         for (int k = 0; k < h_[ri].numChildren; ++k) refine(c + k, si, out);
@@ -540,7 +558,7 @@ std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* pr
                     // A hidden transfer stays hidden whatever its sources' radiosities become.
                     // A link whose source's parts now differ in light is estimated again (by light,
                     // estimateVisibility) even where its error alone would keep it.
-                    bool deviates = sourceDeviationError(l) > threshold_;
+                    bool deviates = sourceDeviationError(l) > threshold_ || gradientError(l) > threshold_;
                     bool splittable = l.V > 0 && (canSplit(l.receiver) || (l.partial() && canSplit(l.source)) || deviates);
                     if ((linkError(l) > threshold_ || deviates) && splittable) {
                         anyChange = true;

@@ -73,6 +73,9 @@ private:
     Vec3 pointByLight(int e, double u, double s, double t) const;
     // e has children that existed, with radiosities, before this refinement pass.
     bool hasSettledChildren(int e) const;
+    // The error of taking a source's radiosity as uniform when its parts differ (Bdev), however
+    // visible: about rho * Bdev * F * min(1, size / distance).
+    double gradientError(const Link& l) const;
     void keep(const Link& l, std::vector<Link>& out);  // appends, within settings_.maxLinks
     // Fig. 4: a significant transfer onto a large planar receiver through blockers becomes one
     // convolution link; true when it did.
