@@ -141,11 +141,11 @@ class Job:
         report["times"]["solve"] = time.perf_counter() - t
         native_report = _jsonable(dict(solution.report))
         report["solver"] = native_report
-        for key in ("polygons", "elements", "leaves", "links", "rays", "iterations", "residual",
-                    "refine_passes", "clusters", "cluster_links", "shafts_clear", "convolution_links",
-                    "convolution_tried", "convolution_refused", "convolution_texels", "convolution_max_error"):
-            if key in native_report:
-                report[key] = native_report[key]
+        # Every count and figure of the solver's report at the top level (the solver declares them,
+        # native/src/util/counters.h); its timings and warnings are merged below.
+        for key, value in native_report.items():
+            if key not in ("times", "warnings", "converged"):
+                report[key] = value
         report["warnings"] += [f"solver: {w}" for w in native_report.get("warnings", [])]
         if native_report.get("converged") is False:
             report["warnings"].append(f"solver: not converged after {native_report.get('iterations')} "

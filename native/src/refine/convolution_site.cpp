@@ -15,6 +15,13 @@
 namespace penumbra {
 namespace {
 
+PENUMBRA_COUNTER(kTried, "convolution_tried");  // pairs that reached the blocker selection; refused, by reason:
+PENUMBRA_COUNTER(kNoBlocker, "convolution_refused/no_blocker");  // none in the shaft: standard links are cheap
+PENUMBRA_COUNTER(kIntruder, "convolution_refused/intruder");  // an occluder reaches into the source's or receiver's box
+PENUMBRA_COUNTER(kInvalid, "convolution_refused/invalid");  // depth order or geometry the convolution cannot take
+PENUMBRA_COUNTER(kTooCoarse, "convolution_refused/too_coarse");  // E_rr > e_max
+PENUMBRA_COUNTER(kTooSlow, "convolution_refused/too_slow");      // predicted time > t_max
+
 constexpr int kEmissionImage = 64;
 constexpr int kMinTexture = 64;
 constexpr int kDisplayFactor = 8;
@@ -150,8 +157,8 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
 
 }  // namespace
 
-ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s)
-    : h_(h), rays_(rays), settings_(s) {
+ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters)
+    : h_(h), rays_(rays), settings_(s), counters_(counters) {
     const Scene& sc = h.scene();
     tol_ = 1e-3 * sc.diagonal;
     // Lying in a plane is a matter of float32 rounding of the caller's coordinates (a few ulps of the
@@ -240,8 +247,8 @@ bool ConvolutionSites::linkPossibleBelow(int r, int s, const std::function<bool(
 
 bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     // Without `out` this only asks whether a link would pass every test: nothing is counted or computed.
-    auto bump = [&](std::atomic<size_t>& counter) {
-        if (out) ++counter;
+    auto bump = [&](CounterId counter) {
+        if (out) counters_.add(counter);
     };
     if (r == s || !receiverCandidate(r)) return false;
     if (isClusterNode(s) ? !emitterGroup_[size_t(clusterIndex(s))] : !sourceHasEmitters(s)) return false;
@@ -265,7 +272,7 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     Bounds fb;
     for (int p : faces) fb.extend(polygonBox(sc.polygons[size_t(p)]));
     if (sideOf(rplane, fb, tol_) <= 0) return false;  // the source must be wholly in front of the receiver
-    bump(stats_.tried);
+    bump(kTried);
 
     // Blocker selection (§5.2): occluders whose boxes cross the shaft between source and receiver.
     const ScenePolygon& splane = sc.polygons[size_t(faces[0])];
@@ -285,14 +292,14 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
         if (onOrBehind(splane, qp, planeTol_) || onOrBehind(rplane, qp, planeTol_)) continue;
         if (overlaps(qb, rb) || overlaps(qb, fb)) {
-            bump(stats_.intruder);
+            bump(kIntruder);
             return false;
         }
         const Polygon& g = qp.geom;
         for (int k = 1; k + 1 < g.n; ++k) tris.push_back({g.v[0], g.v[k], g.v[k + 1]});
     }
     if (tris.empty()) {
-        bump(stats_.noBlocker);
+        bump(kNoBlocker);
         return false;
     }
 
@@ -331,12 +338,12 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     try {
         ConvolutionPlan plan = planSoftShadow(whole, tris, rec, cs);
         if (plan.slices.empty()) {
-            bump(stats_.noBlocker);
+            bump(kNoBlocker);
             return false;
         }
         judged = plan.E_rr;
         if (judged > settings_.eMax) {
-            bump(stats_.tooCoarse);
+            bump(kTooCoarse);
             return false;
         }
         ConvolutionSettings fine = cs;
@@ -355,18 +362,18 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
                 parts.push_back(std::move(part));
             }
     } catch (const std::domain_error&) {
-        bump(stats_.invalid);
+        bump(kInvalid);
         return false;
     } catch (const std::invalid_argument&) {
-        bump(stats_.invalid);
+        bump(kInvalid);
         return false;
     }
     if (parts.empty()) {
-        bump(stats_.invalid);
+        bump(kInvalid);
         return false;
     }
     if (predicted > settings_.tMax) {
-        bump(stats_.tooSlow);
+        bump(kTooSlow);
         return false;
     }
     if (!out) return true;
@@ -380,11 +387,11 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
             out->pieces.insert(out->pieces.end(), parts[j].pieces.begin(), parts[j].pieces.end());
         }
     } catch (const std::domain_error&) {
-        bump(stats_.invalid);
+        bump(kInvalid);
         return false;
     }
     double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    for (double cur = stats_.seconds.load(); !stats_.seconds.compare_exchange_weak(cur, cur + elapsed);) {
+    for (double cur = seconds_.load(); !seconds_.compare_exchange_weak(cur, cur + elapsed);) {
     }
     out->receiver = r;
     out->source = s;
@@ -395,7 +402,6 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     out->sourcePolygons = faces;
     out->blockerTriangles = int(tris.size());
     out->error = judged;
-    bump(stats_.made);
     return true;
 }
 
