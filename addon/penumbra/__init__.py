@@ -44,7 +44,7 @@ except ImportError as _e:
 
 from . import export, settings_table, writeback, preview as _preview  # noqa: E402
 
-Cancelled = getattr(_native, "Cancelled", None)
+Cancelled = _native.Cancelled
 
 # The solver settings bake() takes, from the one table of settings (settings_table.py).
 SOLVER_KEYS = settings_table.SOLVER_KEYS
@@ -130,7 +130,7 @@ class Job:
         """Run the native solver; safe in a worker thread. Raises `Cancelled` when progress returns False."""
         ex, report = self.exported, self.report
         if progress is not None and progress("solve", 0.0) is False:
-            raise Cancelled("cancelled during solve") if Cancelled else RuntimeError("cancelled")
+            raise Cancelled("cancelled during solve")
         t = time.perf_counter()
         cb = None
         if progress is not None:
@@ -188,7 +188,7 @@ class Job:
 def _stepper(progress):
     def step(stage, frac):
         if progress is not None and progress(stage, frac) is False:
-            raise Cancelled(f"cancelled during {stage}") if Cancelled else RuntimeError("cancelled")
+            raise Cancelled(f"cancelled during {stage}")
     return step
 
 

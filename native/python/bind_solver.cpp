@@ -11,6 +11,7 @@
 #include "bake/exr.h"
 #include "bindings.h"
 #include "penumbra.h"
+#include "util/error.h"
 
 namespace py = pybind11;
 

@@ -8,6 +8,7 @@
 #include "refine/refiner.h"
 #include "solve/solver.h"
 #include "util/counters.h"
+#include "util/error.h"
 #include "util/parallel.h"
 #include "visibility/ray_caster.h"
 

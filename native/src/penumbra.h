@@ -56,7 +56,7 @@ private:
     size_t maxTexels_ = 0;
 };
 
-// Throws InputError for bad input (message names the object), BudgetExceeded (an InputError) when
+// Throws (util/error.h) InputError for bad input (message names the object), BudgetExceeded (an InputError) when
 // the scene would exceed a budget in Settings, Cancelled when progress says stop.
 std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, Progress* progress);
 

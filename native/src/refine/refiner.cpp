@@ -7,6 +7,7 @@
 #include "geometry/form_factor.h"
 #include "hierarchy/node.h"
 #include "hierarchy/predicates.h"
+#include "util/error.h"
 #include "util/parallel.h"
 
 namespace penumbra {
