@@ -46,7 +46,9 @@ TEST(Furnace, ClusterLinksKeepTheBalance) {
         s.epsilon = 0.01;
         s.clustering = cl;
         auto sol = solve(box.input(), s, nullptr);
-        if (cl) EXPECT_GT(sol->report().count("cluster_links"), 100u);
+        if (cl) {
+            EXPECT_GT(sol->report().count("cluster_links"), 100u);
+        }
         const Hierarchy& h = sol->hierarchy();
         double sum = 0, area = 0;
         for (size_t i = 0; i < h.size(); ++i)
