@@ -41,8 +41,18 @@ public:
     bool linkPossibleBelow(int r, int s, const std::function<bool(int)>& significant);
     double textureSeconds() const { return seconds_.load(); }  // spent computing textures
 
+    // Why a pair is not served by a convolution link. NotASite is not counted (the pair never reached
+    // the blocker selection); the others are, as convolution_refused/<reason>.
+    enum class Refusal { None, NotASite, NoBlocker, Intruder, Invalid, TooCoarse, TooSlow };
+
 private:
+    struct Site;  // a pair's polygons, boxes, blockers and plans, filled in by the steps below
     bool evaluate(int r, int s, ConvolutionLink* out);
+    Refusal selectSource(int r, int s, Site& site) const;  // test 2
+    Refusal selectBlockers(Site& site) const;              // test 3
+    Refusal planTextures(Site& site) const;                // test 4
+    Refusal withinTimeBudget(const Site& site) const;      // test 5
+    Refusal computeTextures(Site& site, ConvolutionLink& out);
     bool planarCluster(int c) const { return planar_[size_t(c)]; }
     void nodePolygons(int node, std::vector<int>& out) const;
 
