@@ -7,5 +7,9 @@ BUILD=${PENUMBRA_BUILD_DIR:-build}
 if [ ! -f "$BUILD/CMakeCache.txt" ]; then
   cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DPython_EXECUTABLE=/usr/bin/python3.11 ${PENUMBRA_CMAKE_ARGS:-}
 fi
+# PENUMBRA_WERROR=ON|OFF (scripts/test.sh sets ON) is applied to an existing build directory too.
+if [ -n "${PENUMBRA_WERROR:-}" ]; then
+  cmake -S . -B "$BUILD" -DPENUMBRA_WERROR="$PENUMBRA_WERROR" > /dev/null
+fi
 cmake --build "$BUILD" -j"$(nproc)"
 cmake --build "$BUILD" --target addon_zip

@@ -2,6 +2,7 @@
 # Every test: C++ unit tests (ctest), the native module under Debian's Python, and the add-on inside Blender.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+export PENUMBRA_WERROR=${PENUMBRA_WERROR:-ON}   # a warning in the native code fails CI
 bash scripts/build.sh
 BUILD=${PENUMBRA_BUILD_DIR:-build}
 export PENUMBRA_ADDON_DIR="$PWD/$BUILD/addon"
@@ -16,6 +17,7 @@ if [ ! -f "$ASAN_BUILD/CMakeCache.txt" ]; then
   cmake -S . -B "$ASAN_BUILD" -DPENUMBRA_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DPython_EXECUTABLE=/usr/bin/python3.11
 fi
+cmake -S . -B "$ASAN_BUILD" -DPENUMBRA_WERROR="$PENUMBRA_WERROR" > /dev/null
 cmake --build "$ASAN_BUILD" --target penumbra_tests -j"$(nproc)"
 (cd "$ASAN_BUILD" &&
   ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \

@@ -44,7 +44,7 @@ except ImportError as _e:
 
 from . import export, settings_table, writeback, preview as _preview  # noqa: E402
 
-Cancelled = getattr(_native, "Cancelled", None)
+Cancelled = _native.Cancelled
 
 # The solver settings bake() takes, from the one table of settings (settings_table.py).
 SOLVER_KEYS = settings_table.SOLVER_KEYS
@@ -130,7 +130,7 @@ class Job:
         """Run the native solver; safe in a worker thread. Raises `Cancelled` when progress returns False."""
         ex, report = self.exported, self.report
         if progress is not None and progress("solve", 0.0) is False:
-            raise Cancelled("cancelled during solve") if Cancelled else RuntimeError("cancelled")
+            raise Cancelled("cancelled during solve")
         t = time.perf_counter()
         cb = None
         if progress is not None:
@@ -141,12 +141,11 @@ class Job:
         report["times"]["solve"] = time.perf_counter() - t
         native_report = _jsonable(dict(solution.report))
         report["solver"] = native_report
-        for key in ("polygons", "elements", "leaves", "links", "rays", "iterations", "residual",
-                    "refine_passes", "clusters", "cluster_links", "shafts_clear", "convolution_links",
-                    "convolution_tried", "convolution_refused", "convolution_texels", "convolution_max_error",
-                    "error_estimate", "gather_emitters"):
-            if key in native_report:
-                report[key] = native_report[key]
+        # Every count and figure of the solver's report at the top level (the solver declares them,
+        # native/src/util/counters.h); its timings and warnings are merged below.
+        for key, value in native_report.items():
+            if key not in ("times", "warnings", "converged"):
+                report[key] = value
         report["warnings"] += [f"solver: {w}" for w in native_report.get("warnings", [])]
         if native_report.get("converged") is False:
             report["warnings"].append(f"solver: not converged after {native_report.get('iterations')} "
@@ -189,7 +188,7 @@ class Job:
 def _stepper(progress):
     def step(stage, frac):
         if progress is not None and progress(stage, frac) is False:
-            raise Cancelled(f"cancelled during {stage}") if Cancelled else RuntimeError("cancelled")
+            raise Cancelled(f"cancelled during {stage}")
     return step
 
 

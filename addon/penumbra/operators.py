@@ -137,7 +137,7 @@ def _record(context, scene, outcome, message, report=None):
 
 def _error_text(e):
     import penumbra
-    if penumbra.Cancelled is not None and isinstance(e, penumbra.Cancelled):
+    if isinstance(e, penumbra.Cancelled):
         return "CANCELLED", "Bake cancelled; the scene is unchanged"
     return "ERROR", f"{e}"
 

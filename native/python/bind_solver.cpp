@@ -11,6 +11,7 @@
 #include "bake/exr.h"
 #include "bindings.h"
 #include "penumbra.h"
+#include "util/error.h"
 
 namespace py = pybind11;
 
@@ -141,34 +142,29 @@ py::list settingsTable() {
     return table;
 }
 
+// Every count under its name; "group/key" becomes d["group"]["key"] (Report::counts, util/counters.h).
 py::dict reportDict(const Report& r, const std::vector<std::string>& names) {
     py::dict d, times;
     for (auto& [k, v] : r.seconds) times[py::str(k)] = v;
     d["times"] = times;
-    d["polygons"] = r.polygons;
-    d["elements"] = r.elements;
-    d["leaves"] = r.leaves;
-    d["links"] = r.links;
-    d["rays"] = r.rays;
-    d["shafts_clear"] = r.shaftsClear;
-    d["clusters"] = r.clusters;
-    d["cluster_links"] = r.clusterLinks;
-    d["convolution_links"] = r.convolutionLinks;
-    d["convolution_tried"] = r.convolutionTried;
-    d["convolution_texels"] = r.convolutionTexels;
+    for (auto& [name, v] : r.counts) {
+        size_t slash = name.find('/');
+        if (slash == std::string::npos) {
+            d[py::str(name)] = v;
+            continue;
+        }
+        py::str group(name.substr(0, slash));
+        if (!d.contains(group)) d[group] = py::dict();
+        py::dict sub = d[group];  // the same dict object, not a copy
+        sub[py::str(name.substr(slash + 1))] = v;
+    }
     d["convolution_max_error"] = r.convolutionMaxError;
-    py::dict refused;
-    for (auto& [k, v] : r.convolutionRefused) refused[py::str(k)] = v;
-    d["convolution_refused"] = refused;
-    d["gather_emitters"] = r.gatherEmitters;
     py::dict est, perObject;
     for (size_t o = 0; o < r.objectErrorEstimate.size() && o < names.size(); ++o)
         if (r.objectErrorEstimate[o] >= 0) perObject[py::str(names[o])] = r.objectErrorEstimate[o];
     est["overall"] = r.errorEstimate;
     est["objects"] = perObject;
     d["error_estimate"] = est;
-    d["iterations"] = r.iterations;
-    d["refine_passes"] = r.refinePasses;
     d["residual"] = r.residual;
     d["converged"] = r.converged;
     d["warnings"] = r.warnings;

@@ -8,11 +8,25 @@
 #include "refine/refiner.h"
 #include "solve/error_estimate.h"
 #include "solve/solver.h"
+#include "util/counters.h"
+#include "util/error.h"
 #include "util/parallel.h"
 #include "visibility/ray_caster.h"
 
 namespace penumbra {
 namespace {
+
+PENUMBRA_COUNTER(kPolygons, "polygons");
+PENUMBRA_COUNTER(kElements, "elements");
+PENUMBRA_COUNTER(kLeaves, "leaves");
+PENUMBRA_COUNTER(kLinks, "links");
+PENUMBRA_COUNTER(kClusters, "clusters");                   // cluster nodes
+PENUMBRA_COUNTER(kClusterLinks, "cluster_links");          // links with a cluster at either end
+PENUMBRA_COUNTER(kConvolutionLinks, "convolution_links");
+PENUMBRA_COUNTER(kConvolutionTexels, "convolution_texels");  // of all their textures
+PENUMBRA_COUNTER(kGatherEmitters, "gather_emitters");  // emitting faces the final gather evaluates at every bake point
+PENUMBRA_COUNTER(kIterations, "iterations");           // of the solver, over all refinement passes
+PENUMBRA_COUNTER(kRefinePasses, "refine_passes");
 
 class Stopwatch {
 public:
@@ -59,13 +73,14 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     validateSettings(settings);
     auto sol = std::unique_ptr<Solution>(new Solution());
     Report& rep = sol->report_;
+    Counters counters;  // this solve's; copied into rep.counts at the end
     sol->threads_ = resolveThreads(settings.threads);
     sol->maxTexels_ = settings.maxTexels;
     Stopwatch clock;
 
     sol->scene_ = std::make_unique<Scene>(buildScene(in));
     const Scene& scene = *sol->scene_;
-    rep.polygons = scene.polygons.size();
+    counters.add(kPolygons, scene.polygons.size());
     rep.warnings = scene.warnings;
     sol->hierarchy_ = std::make_unique<Hierarchy>(scene, settings.maxElements, settings.clustering);
     Hierarchy& h = *sol->hierarchy_;
@@ -77,7 +92,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     if (!h.clusters().empty()) h.setBuried(rays.buriedFaces(scene, 1e-5 * scene.diagonal));
     rep.seconds["visibility_setup"] = clock.lap();
 
-    Refiner refiner(h, rays, settings);
+    Refiner refiner(h, rays, settings, counters);
     Solver solver(h, settings);
     std::vector<Link>& links = sol->links_;
     std::vector<ConvolutionLink>& conv = sol->convLinks_;
@@ -95,8 +110,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     rep.seconds["refine"] = clock.lap();
     SolveResult res = solver.solve(links, progress);
     rep.seconds["solve"] = clock.lap();
-    rep.refinePasses = 1;
-    int totalIterations = res.iterations;
+    int passes = 1, totalIterations = res.iterations;
     for (int pass = 1; pass < settings.refinePasses; ++pass) {
         bool changed = false;
         h.updateClusterFlux();
@@ -109,10 +123,11 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         rep.seconds["refine"] += clock.lap();
         res = solver.solve(links, progress);
         totalIterations += res.iterations;
-        rep.refinePasses = pass + 1;
+        passes = pass + 1;
         rep.seconds["solve"] += clock.lap();
     }
-    rep.iterations = totalIterations;
+    counters.add(kRefinePasses, size_t(passes));
+    counters.add(kIterations, size_t(totalIterations));
     rep.residual = res.residual;
     rep.converged = res.converged;
     if (!res.converged)
@@ -135,7 +150,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         std::vector<Rgb> reflected = conv.empty() ? std::vector<Rgb>{} : textures.reflected(h, conv);
         sol->field_ = RadianceField(h, reflected, conv.empty() ? ConvolutionField{} : ConvolutionField(h, conv),
                                     shadowed, unoccluded, direct);
-        rep.gatherEmitters = direct->emitters();
+        counters.add(kGatherEmitters, direct->emitters());
     } else {
         sol->field_ = conv.empty() ? RadianceField(h)
                                    : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
@@ -144,27 +159,21 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     rep.errorEstimate = est.overall;
     rep.objectErrorEstimate = est.perObject;
     rep.seconds["reconstruct"] = clock.lap();
-    rep.elements = h.size();
-    rep.leaves = h.countLeaves();
-    rep.links = links.size();
-    rep.rays = refiner.stats().rays;
-    rep.shaftsClear = refiner.stats().shaftsClear;
-    rep.clusters = h.clusters().size();
-    rep.clusterLinks = size_t(std::count_if(links.begin(), links.end(), [](const Link& l) {
+    counters.add(kElements, h.size());
+    counters.add(kLeaves, h.countLeaves());
+    counters.add(kLinks, links.size());
+    counters.add(kClusters, h.clusters().size());
+    counters.add(kClusterLinks, size_t(std::count_if(links.begin(), links.end(), [](const Link& l) {
         return isClusterNode(l.receiver) || isClusterNode(l.source);
-    }));
-    rep.convolutionLinks = conv.size();
+    })));
+    counters.add(kConvolutionLinks, conv.size());
     for (const ConvolutionLink& l : conv) {
-        for (const auto& t : l.textures) rep.convolutionTexels += size_t(t->n) * size_t(t->n);
+        for (const auto& t : l.textures) counters.add(kConvolutionTexels, size_t(t->n) * size_t(t->n));
         rep.convolutionMaxError = std::max(rep.convolutionMaxError, l.error);
     }
-    if (const ConvolutionSites* cs = refiner.convolutionSites()) {
-        const ConvolutionStats& st = cs->stats();
-        rep.convolutionTried = st.tried;
-        rep.convolutionRefused = {{"no_blocker", st.noBlocker}, {"intruder", st.intruder},
-                                  {"invalid", st.invalid}, {"too_coarse", st.tooCoarse}, {"too_slow", st.tooSlow}};
-        rep.seconds["convolution_textures"] = st.seconds;  // within "refine"
-    }
+    if (const ConvolutionSites* cs = refiner.convolutionSites())
+        rep.seconds["convolution_textures"] = cs->textureSeconds();  // within "refine"
+    rep.counts = counters.values();
     checkProgress(progress, "solve", 1.0);
     return sol;
 }

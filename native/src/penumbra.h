@@ -19,19 +19,17 @@ namespace penumbra {
 
 struct Report {
     std::map<std::string, double> seconds;  // per stage
-    size_t polygons = 0, elements = 0, leaves = 0, links = 0, rays = 0, shaftsClear = 0;
-    size_t clusters = 0, clusterLinks = 0;  // cluster nodes; links with a cluster at either end
-    // Convolution links made; pairs that reached blocker selection; why the others were refused;
-    // texels of all their textures; the largest blocker error E_rr (texels) among them.
-    size_t convolutionLinks = 0, convolutionTried = 0, convolutionTexels = 0;
-    std::map<std::string, size_t> convolutionRefused;
-    double convolutionMaxError = 0;
+    // Every counter of the solve by name, each declared with PENUMBRA_COUNTER where it is counted
+    // (util/counters.h; a name "group/key" nests in the Python dict): polygons, elements, leaves, links,
+    // rays, shafts_clear, clusters, cluster_links, convolution_links, convolution_tried,
+    // convolution_refused/<reason>, convolution_texels, gather_emitters, iterations, refine_passes.
+    std::map<std::string, size_t> counts;
+    size_t count(const std::string& name) const { return counts.at(name); }  // throws for an unknown name
+    double convolutionMaxError = 0;  // the largest blocker error E_rr (texels) among the convolution links
     // Estimated relative RMS error of the reflected radiance (solve/error_estimate.h), overall and per
     // object (by object index, -1 where an object receives nothing).
     double errorEstimate = 0;
     std::vector<double> objectErrorEstimate;
-    size_t gatherEmitters = 0;  // emitting faces the final gather evaluates at every bake point
-    int iterations = 0, refinePasses = 0;
     double residual = 0;
     bool converged = false;
     std::vector<std::string> warnings;
@@ -62,7 +60,7 @@ private:
     size_t maxTexels_ = 0;
 };
 
-// Throws InputError for bad input (message names the object), BudgetExceeded (an InputError) when
+// Throws (util/error.h) InputError for bad input (message names the object), BudgetExceeded (an InputError) when
 // the scene would exceed a budget in Settings, Cancelled when progress says stop.
 std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, Progress* progress);
 

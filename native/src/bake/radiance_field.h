@@ -31,7 +31,6 @@ public:
                   std::shared_ptr<const DirectLight> direct);
     // p in the scene's recentred coordinates; n the geometric normal of the surface at p.
     Rgb radiance(const Vec3& p, const Vec3& n) const;
-    size_t leaves() const { return leaves_.size(); }
 
 private:
     struct Leaf {

@@ -65,12 +65,29 @@ void makeParentDirs(const std::string& path) {
         mkdir(path.substr(0, pos).c_str(), 0755);  // failures surface as a failed export, ignored
 }
 
+bool deterministicPlans = false;  // guarded by the planner mutex
+
 // Called with the planner mutex held. Plans live until process exit, like FFTW's own wisdom.
 Plans plansFor(int n) {
-    static std::map<int, Plans> cache;
+    static std::map<std::pair<int, bool>, Plans> cache;
     static bool wisdomLoaded = false;
-    auto it = cache.find(n);
+    auto it = cache.find({n, deterministicPlans});
     if (it != cache.end()) return it->second;
+    if (deterministicPlans) {
+        fftwf_forget_wisdom();  // ESTIMATE would otherwise take a plan MEASURE left in the wisdom
+        wisdomLoaded = false;   // so that the next MEASURE plan loads the file again before saving it
+        Plans p;
+        const size_t real = static_cast<size_t>(n) * n, cplx = static_cast<size_t>(n) * (n / 2 + 1);
+        float* r = fftwf_alloc_real(real);
+        fftwf_complex* c = fftwf_alloc_complex(cplx);
+        p.r2c = fftwf_plan_dft_r2c_2d(n, n, r, c, FFTW_ESTIMATE);
+        p.c2r = fftwf_plan_dft_c2r_2d(n, n, c, r, FFTW_ESTIMATE);
+        fftwf_free(r);
+        fftwf_free(c);
+        if (!p.r2c || !p.c2r) throw std::runtime_error("FFTW could not plan a " + std::to_string(n) + "^2 transform");
+        cache[{n, true}] = p;
+        return p;
+    }
     const std::string path = fftwWisdomPath();
     if (!wisdomLoaded) {
         wisdomLoaded = true;
@@ -88,7 +105,7 @@ Plans plansFor(int n) {
     fftwf_free(r);
     fftwf_free(c);
     if (!p.r2c || !p.c2r) throw std::runtime_error("FFTW could not plan a " + std::to_string(n) + "^2 transform");
-    cache[n] = p;
+    cache[{n, false}] = p;
     if (!path.empty()) {
         makeParentDirs(path);
         fftwf_export_wisdom_to_filename(path.c_str());
@@ -97,6 +114,11 @@ Plans plansFor(int n) {
 }
 
 }  // namespace
+
+void setFftDeterministic(bool on) {
+    std::lock_guard<std::mutex> lock(fftwPlannerMutex());
+    deterministicPlans = on;
+}
 
 FftConvolver::FftConvolver(int n) : n_(n) {
     if (n < 2 || n > 16384) throw std::invalid_argument("FFT size must be in 2..16384");

@@ -1,6 +1,6 @@
 // Circular 2-D convolution of real N x N images with FFTW single precision (fftw3f), r2c/c2r.
 //
-// Plans are made once per size (FFTW_MEASURE, capped in time) and kept for the process; FFTW's
+// Plans are made once per size (FFTW_MEASURE, capped in time; see setFftDeterministic) and kept for the process; FFTW's
 // planner is not thread-safe, so every planner call in Penumbra must hold fftwPlannerMutex().
 // Executing a plan is thread-safe, so many links can convolve at once. Wisdom is loaded from and
 // saved to $PENUMBRA_FFTW_WISDOM, else ~/.cache/penumbra/fftwf.wisdom; write failures are ignored.
@@ -14,6 +14,13 @@ namespace penumbra {
 
 std::mutex& fftwPlannerMutex();
 std::string fftwWisdomPath();
+
+// MEASURE chooses among FFTW's algorithms by timing them, and their roundings differ in the last bits:
+// textures are then the same for any thread count within a process, but not between processes that
+// planned afresh. With `on`, plans made from then on use FFTW_ESTIMATE without wisdom (forgotten
+// before each plan, never saved): the same algorithm, hence the same bits, in every process on one
+// machine, at some speed. For tests that compare output with recorded values (testing/golden_test.cpp).
+void setFftDeterministic(bool on);
 
 // Smallest 2^a 3^b 5^c 7^d >= n (sizes FFTW handles with its fastest codelets).
 int fastFftSize(int n);

@@ -178,51 +178,57 @@ std::vector<SubBlocker> slabs(const ConvolutionPlan& P, const std::vector<int>& 
     return nonEmpty;
 }
 
-ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& sg,
-                                  const std::vector<BlockerTriangle>& blockers, const ReceiverDesc& rec,
-                                  const ConvolutionSettings& s, DirectionChoice dir) {
+// The steps of planWithDirection, in order. Each returns why the configuration cannot be convolved
+// (empty: go on), and planWithDirection throws that reason as std::domain_error.
+
+// The convolution axis w for `dir` (brief §3.2), pointing from the source toward the receiver.
+std::string chooseAxis(const SourceGeometry& sg, const ReceiverDesc& rec, DirectionChoice dir, Vec3& w) {
     Bounds rb;
     for (const Vec3& p : rec.points) rb.extend(p);
     const Vec3 toReceiver = rb.center() - sg.centroid;
-    Vec3 w;
     if (dir == DirectionChoice::SourceToReceiver) {
         w = toReceiver;
     } else if (dir == DirectionChoice::SourceNormal) {
         w = sg.normal * (dot(sg.normal, toReceiver) >= 0 ? 1.0 : -1.0);
     } else {
-        if (rec.points.size() < 3) throw std::domain_error("receiver normal needs a receiver polygon");
+        if (rec.points.size() < 3) return "receiver normal needs a receiver polygon";
         Vec3 n = newellNormal(rec.points);
         double diag = bboxDiagonal(rec.points);
-        if (!(length(n) > 1e-10 * diag * diag)) throw std::domain_error("receiver polygon has no normal");
+        if (!(length(n) > 1e-10 * diag * diag)) return "receiver polygon has no normal";
         n = n / length(n);
         for (const Vec3& p : rec.points)
             if (std::fabs(dot(p - rec.points[0], n)) > 1e-4 * diag)
-                throw std::domain_error("receiver points are not planar, no receiver normal");
+                return "receiver points are not planar, no receiver normal";
         w = n * (dot(n, toReceiver) >= 0 ? 1.0 : -1.0);
     }
-    if (!(length(w) > 0)) throw std::domain_error("receiver centre coincides with the source centre");
+    if (!(length(w) > 0)) return "receiver centre coincides with the source centre";
+    return "";
+}
 
-    ConvolutionPlan P;
-    P.direction = dir;
+// The frame along w and the depths of source and receiver; the source must face the receiver.
+std::string frameAndDepths(const SourceDesc& src, const SourceGeometry& sg, const ReceiverDesc& rec,
+                           const Vec3& w, ConvolutionPlan& P) {
     P.frame = ConvolutionFrame::make(sg.centroid, w, src.polygon[1] - src.polygon[0]);
     const ConvolutionFrame& f = P.frame;
     P.sourceDepth = f.depthRange(src.polygon);
     P.receiverDepth = f.depthRange(rec.points);
-
-    // The source must face the receiver: every receiver point on its emitting side.
+    // Every receiver point on the source's emitting side.
     double side = 0;
     for (const Vec3& p : rec.points) {
         double d = dot(p - sg.centroid, sg.normal);
         if (d == 0 || (side != 0 && (d > 0) != (side > 0)))
-            throw std::domain_error("receiver is not entirely on one side of the source plane");
+            return "receiver is not entirely on one side of the source plane";
         side = d;
     }
-    if (std::fabs(dot(sg.normal, f.w)) < 1e-6)
-        throw std::domain_error("source is seen edge-on along the convolution direction");
+    if (std::fabs(dot(sg.normal, f.w)) < 1e-6) return "source is seen edge-on along the convolution direction";
+    return "";
+}
 
-    // Triangles entirely beyond the receiver or behind the source cannot cut any source-receiver
-    // segment; dropping them is exact.
-    std::vector<int> kept;
+// The blocker triangles that can cut a source-receiver segment (the others, entirely beyond the
+// receiver or behind the source, are dropped exactly), and their depth order between the two.
+std::string keepBlockers(const std::vector<BlockerTriangle>& blockers, const ConvolutionSettings& s,
+                         ConvolutionPlan& P, std::vector<int>& kept) {
+    const ConvolutionFrame& f = P.frame;
     for (size_t i = 0; i < blockers.size(); ++i) {
         DepthRange d;
         for (const Vec3& v : blockers[i]) d.extend(f.depth(v));
@@ -232,11 +238,16 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
     }
     const double tol = s.depthTolerance * (P.receiverDepth.hi - P.sourceDepth.lo);
     DepthOrder order = checkDepthOrder(P.sourceDepth, P.blockerDepth, P.receiverDepth, tol);
-    if (!order.ok) throw std::domain_error("not a valid convolution configuration: " + order.reason);
+    if (!order.ok) return "not a valid convolution configuration: " + order.reason;
+    return "";
+}
 
+// The receiver's window, the source's footprint and the texture resolution n.
+std::string windowAndResolution(const SourceDesc& src, const ReceiverDesc& rec, const ConvolutionSettings& s,
+                                bool anyBlocker, ConvolutionPlan& P) {
+    const ConvolutionFrame& f = P.frame;
     P.window = windowByCentralProjection(f, rec.points);
-    if (!(P.window.extent > 0)) throw std::domain_error("receiver window has zero size");
-
+    if (!(P.window.extent > 0)) return "receiver window has zero size";
     double ulo = HUGE_VAL, uhi = -HUGE_VAL, vlo = HUGE_VAL, vhi = -HUGE_VAL;
     for (const Vec3& p : src.polygon) {
         Vec2 q{f.coordU(p), f.coordV(p)};
@@ -247,14 +258,13 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
         vhi = std::fmax(vhi, q.y);
     }
     P.L_S = std::fmax(uhi - ulo, vhi - vlo);
-
     // alpha_min does not depend on N: the slab holding the deepest triangle always has the
     // global far depth, so it can choose the resolution before the split.
-    if (!kept.empty())
+    if (anyBlocker)
         P.alpha_min = std::fmax(0.0, alphaAt(P.window.z_r, P.sourceDepth.lo, P.blockerDepth.hi, P.receiverDepth.lo));
     if (s.resolution > 0) {
         P.n = s.resolution;
-    } else if (kept.empty()) {
+    } else if (!anyBlocker) {
         P.n = s.minResolution;
     } else {
         // Texels of half the narrowest penumbra resolve every penumbra (brief §5.1).
@@ -263,11 +273,15 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
         P.n = std::clamp(static_cast<int>(std::ceil(P.window.extent / pc - 1e-9)), s.minResolution, s.maxResolution);
     }
     P.p = P.window.extent / P.n;
-    if (kept.empty()) return P;
+    return "";
+}
 
-    // Smallest N reaching e_max. If none does (the receiver's own depth spread may dominate),
-    // the smallest N within 10% of the best error reached: every extra slab costs FFTs and adds
-    // seams where the product of slice maps is approximate.
+// The sub-blockers: the smallest N reaching e_max. If none does (the receiver's own depth spread may
+// dominate), the smallest N within 10% of the best error reached: every extra slab costs FFTs and adds
+// seams where the product of slice maps is approximate.
+void chooseSlices(const std::vector<BlockerTriangle>& blockers, const std::vector<int>& kept,
+                  const ConvolutionSettings& s, ConvolutionPlan& P) {
+    const ConvolutionFrame& f = P.frame;
     std::vector<TriangleDepths> td(kept.size());
     for (size_t i = 0; i < kept.size(); ++i) {
         const BlockerTriangle& t = blockers[kept[i]];
@@ -298,14 +312,24 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
     P.slices = std::move(tries[pick]);
     P.E_rr = errs[pick];
     P.alpha_min = HUGE_VAL;
-    double alphaUse = 0;
     for (const SubBlocker& b : P.slices) {
         P.alpha_min = std::fmin(P.alpha_min, b.alphaLo);
         P.visibilityError = std::fmax(P.visibilityError, b.visibilityError);
-        alphaUse = std::fmax(alphaUse, b.alphaStar);
     }
+}
 
-    // Padding (brief §5.2): the blocker is needed over [y + alpha s_lo, y + alpha s_hi].
+// Padding (brief §5.2): the blocker is needed over [y + alpha s_lo, y + alpha s_hi]; the padded size
+// must fit maxFftSize.
+std::string padding(const ConvolutionSettings& s, ConvolutionPlan& P) {
+    double ulo = HUGE_VAL, uhi = -HUGE_VAL, vlo = HUGE_VAL, vhi = -HUGE_VAL;
+    for (const Vec2& q : P.footprint) {
+        ulo = std::fmin(ulo, q.x);
+        uhi = std::fmax(uhi, q.x);
+        vlo = std::fmin(vlo, q.y);
+        vhi = std::fmax(vhi, q.y);
+    }
+    double alphaUse = 0;
+    for (const SubBlocker& b : P.slices) alphaUse = std::fmax(alphaUse, b.alphaStar);
     auto margin = [&](double extentOut) { return static_cast<int>(std::ceil(alphaUse * extentOut / P.p)) + 1; };
     P.marginLoU = margin(-ulo);
     P.marginLoV = margin(-vlo);
@@ -314,9 +338,29 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
         std::ostringstream m;
         m << "penumbra too wide for the texture: the padded FFT would be " << need << " > " << s.maxFftSize
           << " (lower the resolution)";
-        throw std::domain_error(m.str());
+        return m.str();
     }
     P.fftSize = fastFftSize(need);
+    return "";
+}
+
+ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& sg,
+                                  const std::vector<BlockerTriangle>& blockers, const ReceiverDesc& rec,
+                                  const ConvolutionSettings& s, DirectionChoice dir) {
+    auto refuse = [](const std::string& why) {
+        if (!why.empty()) throw std::domain_error(why);
+    };
+    Vec3 w;
+    refuse(chooseAxis(sg, rec, dir, w));
+    ConvolutionPlan P;
+    P.direction = dir;
+    refuse(frameAndDepths(src, sg, rec, w, P));
+    std::vector<int> kept;
+    refuse(keepBlockers(blockers, s, P, kept));
+    refuse(windowAndResolution(src, rec, s, !kept.empty(), P));
+    if (kept.empty()) return P;
+    chooseSlices(blockers, kept, s, P);
+    refuse(padding(s, P));
     return P;
 }
 

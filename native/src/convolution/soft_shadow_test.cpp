@@ -197,7 +197,9 @@ TEST(ConvSoftShadow, ThickBlockerEstimateFallsWithSlabCount) {
         ConvolutionPlan P = planSoftShadow(planarSource(kSquareSource), tris, squareReceiver(3, 3), s);
         EXPECT_EQ(static_cast<int>(P.slices.size()), n);
         E.push_back(P.E_rr);
-        if (n > 1) EXPECT_LE(E[n - 1], E[n - 2] * 1.05);
+        if (n > 1) {
+            EXPECT_LE(E[n - 1], E[n - 2] * 1.05);
+        }
     }
     // Equal inverse-depth slabs: E(N) ~ E(1) / N.
     EXPECT_LT(E[7], E[0] / 5);

@@ -5,7 +5,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "util/progress.h"
+#include "util/error.h"
 
 namespace penumbra {
 namespace {

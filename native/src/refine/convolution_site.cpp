@@ -15,14 +15,21 @@
 namespace penumbra {
 namespace {
 
-constexpr int kEmissionImage = 64;
+PENUMBRA_COUNTER(kTried, "convolution_tried");  // pairs that reached the blocker selection; refused, by reason:
+PENUMBRA_COUNTER(kNoBlocker, "convolution_refused/no_blocker");  // none in the shaft: standard links are cheap
+PENUMBRA_COUNTER(kIntruder, "convolution_refused/intruder");  // an occluder reaches into the source's or receiver's box
+PENUMBRA_COUNTER(kInvalid, "convolution_refused/invalid");  // depth order or geometry the convolution cannot take
+PENUMBRA_COUNTER(kTooCoarse, "convolution_refused/too_coarse");  // E_rr > e_max
+PENUMBRA_COUNTER(kTooSlow, "convolution_refused/too_slow");      // predicted time > t_max
+
+constexpr int kEmissionImage = 64;  // texels per side of a multi-face source's emission image
 constexpr int kMinTexture = 64;
 constexpr int kDisplayFactor = 8;
 // A source part's side is at most this fraction of its distance to the receiver, in at most kMaxParts x
 // kMaxParts parts. The area-weighted visibility's error falls as the square of the part's size: on
 // parallel planes 4.1 % of the peak with one part, 1.1 % with 2 x 2, 0.3 % with 4 x 4 (brute force).
 constexpr double kPartRatio = 0.125;
-constexpr int kMaxParts = 4;  // texels per side of a multi-face source's emission image
+constexpr int kMaxParts = 4;
 
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
@@ -150,8 +157,8 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
 
 }  // namespace
 
-ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s)
-    : h_(h), rays_(rays), settings_(s) {
+ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters)
+    : h_(h), rays_(rays), settings_(s), counters_(counters) {
     const Scene& sc = h.scene();
     tol_ = 1e-3 * sc.diagonal;
     // Lying in a plane is a matter of float32 rounding of the caller's coordinates (a few ulps of the
@@ -238,70 +245,117 @@ bool ConvolutionSites::linkPossibleBelow(int r, int s, const std::function<bool(
     return false;
 }
 
-bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
-    // Without `out` this only asks whether a link would pass every test: nothing is counted or computed.
-    auto bump = [&](std::atomic<size_t>& counter) {
-        if (out) ++counter;
-    };
-    if (r == s || !receiverCandidate(r)) return false;
-    if (isClusterNode(s) ? !emitterGroup_[size_t(clusterIndex(s))] : !sourceHasEmitters(s)) return false;
-    const Scene& sc = h_.scene();
-    std::vector<int> rpolys, spolys;
-    nodePolygons(r, rpolys);
-    nodePolygons(s, spolys);
-    Bounds rb = nodeBox(h_, r);
+// A pair on its way through evaluate(): each step fills in what the next one needs.
+struct ConvolutionSites::Site {
+    int r = -1, s = -1;
+    std::vector<int> rpolys;     // the receiver's polygons, sorted
+    std::vector<int> faces;      // the source: the sending faces of s turned toward the receiver
+    Bounds rb, fb;               // boxes of the receiver and of the source faces
+    const ScenePolygon* rplane = nullptr;
+    const ScenePolygon* splane = nullptr;
+    std::vector<BlockerTriangle> tris;
+    std::vector<SourcePart> parts;
+    std::vector<ConvolutionPlan> plans;
+    std::vector<ConvolutionSettings> partSettings;
+    double judged = 0;  // E_rr in the texels of half the narrowest penumbra
+};
 
-    // The sending faces turned toward the receiver are the source; the others must not see any of it.
-    std::vector<int> faces;
+namespace {
+
+CounterId counterOf(ConvolutionSites::Refusal why) {
+    switch (why) {
+    case ConvolutionSites::Refusal::NoBlocker: return kNoBlocker;
+    case ConvolutionSites::Refusal::Intruder: return kIntruder;
+    case ConvolutionSites::Refusal::TooCoarse: return kTooCoarse;
+    case ConvolutionSites::Refusal::TooSlow: return kTooSlow;
+    default: return kInvalid;
+    }
+}
+
+}  // namespace
+
+// Like Embree's Scene::commit_internal handing each geometry type to its builder, evaluate() runs the
+// tests of the file's head as steps, each returning why it refuses (Refusal::None: go on). Without
+// `out` it only asks whether a link would pass every test: nothing is counted or computed.
+bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
+    Site site;
+    if (selectSource(r, s, site) != Refusal::None) return false;  // not a site: not counted
+    if (out) counters_.add(kTried);
+    Refusal why = selectBlockers(site);
+    if (why == Refusal::None) why = planTextures(site);
+    if (why == Refusal::None) why = withinTimeBudget(site);
+    if (why == Refusal::None && out) why = computeTextures(site, *out);
+    if (why != Refusal::None) {
+        if (out) counters_.add(counterOf(why));
+        return false;
+    }
+    return true;
+}
+
+// Test 2: r a planar receiver, s an emitter group; the faces of s turned toward r are the source, and
+// every other sending face of s must not see r at all.
+ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& site) const {
+    if (r == s || !receiverCandidate(r)) return Refusal::NotASite;
+    if (isClusterNode(s) ? !emitterGroup_[size_t(clusterIndex(s))] : !sourceHasEmitters(s)) return Refusal::NotASite;
+    const Scene& sc = h_.scene();
+    std::vector<int> spolys;
+    site.r = r;
+    site.s = s;
+    nodePolygons(r, site.rpolys);
+    nodePolygons(s, spolys);
+    site.rb = nodeBox(h_, r);
     for (int p : spolys) {
         const ScenePolygon& sp = sc.polygons[size_t(p)];
         if (!sendsLight(sp)) continue;
-        int side = sideOf(sp, rb, tol_);
-        if (side == 0) return false;
-        if (side > 0) faces.push_back(p);
+        int side = sideOf(sp, site.rb, tol_);
+        if (side == 0) return Refusal::NotASite;
+        if (side > 0) site.faces.push_back(p);
     }
-    if (faces.empty()) return false;
-    const ScenePolygon& rplane = sc.polygons[size_t(rpolys[0])];
-    Bounds fb;
-    for (int p : faces) fb.extend(polygonBox(sc.polygons[size_t(p)]));
-    if (sideOf(rplane, fb, tol_) <= 0) return false;  // the source must be wholly in front of the receiver
-    bump(stats_.tried);
+    if (site.faces.empty()) return Refusal::NotASite;
+    site.rplane = &sc.polygons[size_t(site.rpolys[0])];
+    for (int p : site.faces) site.fb.extend(polygonBox(sc.polygons[size_t(p)]));
+    // The source must be wholly in front of the receiver.
+    if (sideOf(*site.rplane, site.fb, tol_) <= 0) return Refusal::NotASite;
+    site.splane = &sc.polygons[size_t(site.faces[0])];
+    return Refusal::None;
+}
 
-    // Blocker selection (§5.2): occluders whose boxes cross the shaft between source and receiver.
-    const ScenePolygon& splane = sc.polygons[size_t(faces[0])];
-    Shaft shaft(rb, fb);
-    std::vector<BlockerTriangle> tris;
+// Test 3, blocker selection (§5.2): occluders whose boxes cross the shaft between source and receiver.
+ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
+    const Scene& sc = h_.scene();
+    Shaft shaft(site.rb, site.fb);
     std::vector<int> candidates = rays_.occludersInShaft(shaft);
     std::sort(candidates.begin(), candidates.end());
     for (int q : candidates) {
         // The receiver's faces all lie in its plane; of the source's node only the emitting faces are
         // skipped: anything else in it (a lamp's housing) may block, and overlapping the source's box it
         // then refuses the link.
-        if (std::binary_search(rpolys.begin(), rpolys.end(), q) || std::binary_search(faces.begin(), faces.end(), q))
+        if (std::binary_search(site.rpolys.begin(), site.rpolys.end(), q) ||
+            std::binary_search(site.faces.begin(), site.faces.end(), q))
             continue;
         const ScenePolygon& qp = sc.polygons[size_t(q)];
         Bounds qb = shrunk(polygonBox(qp), tol_);
         if (shaft.classify(qb) == Shaft::Outside) continue;
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
-        if (onOrBehind(splane, qp, planeTol_) || onOrBehind(rplane, qp, planeTol_)) continue;
-        if (overlaps(qb, rb) || overlaps(qb, fb)) {
-            bump(stats_.intruder);
-            return false;
-        }
+        if (onOrBehind(*site.splane, qp, planeTol_) || onOrBehind(*site.rplane, qp, planeTol_)) continue;
+        if (overlaps(qb, site.rb) || overlaps(qb, site.fb)) return Refusal::Intruder;
         const Polygon& g = qp.geom;
-        for (int k = 1; k + 1 < g.n; ++k) tris.push_back({g.v[0], g.v[k], g.v[k + 1]});
+        for (int k = 1; k + 1 < g.n; ++k) site.tris.push_back({g.v[0], g.v[k], g.v[k + 1]});
     }
-    if (tris.empty()) {
-        bump(stats_.noBlocker);
-        return false;
-    }
+    return site.tris.empty() ? Refusal::NoBlocker : Refusal::None;
+}
 
+// Test 4: the blocker error E_rr of the whole source within e_max; then the plans of its parts.
+ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
+    const Scene& sc = h_.scene();
+    const std::vector<int>& faces = site.faces;
+    const Bounds& rb = site.rb;
     SourceFrame frame = sourceFrame(sc, faces);
     SourceDesc whole;
     whole.polygon = {frame.at(frame.s0, frame.t0), frame.at(frame.s1, frame.t0), frame.at(frame.s1, frame.t1),
                      frame.at(frame.s0, frame.t1)};
     ReceiverDesc rec;
-    for (int p : rpolys) {
+    for (int p : site.rpolys) {
         const Polygon& g = sc.polygons[size_t(p)].geom;
         for (int k = 0; k < g.n; ++k) rec.points.push_back(g.v[k]);
     }
@@ -319,26 +373,15 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     double dist = HUGE_VAL;
     for (int i = 0; i < 8; ++i) {
         Vec3 c{(i & 1) ? rb.hi.x : rb.lo.x, (i & 2) ? rb.hi.y : rb.lo.y, (i & 4) ? rb.hi.z : rb.lo.z};
-        dist = std::min(dist, dot(c - splane.geom.v[0], splane.normal));
+        dist = std::min(dist, dot(c - site.splane->geom.v[0], site.splane->normal));
     }
     double side = std::max(frame.s1 - frame.s0, frame.t1 - frame.t0);
     int k = std::clamp(int(std::ceil(side / (kPartRatio * std::max(dist, 1e-300)) - 1e-9)), 1, kMaxParts);
-    std::vector<SourcePart> parts;
-    std::vector<ConvolutionPlan> plans;
-    std::vector<ConvolutionSettings> partSettings;
-    double judged = 0;  // E_rr in the texels of half the narrowest penumbra
-    double predicted = 0;
     try {
-        ConvolutionPlan plan = planSoftShadow(whole, tris, rec, cs);
-        if (plan.slices.empty()) {
-            bump(stats_.noBlocker);
-            return false;
-        }
-        judged = plan.E_rr;
-        if (judged > settings_.eMax) {
-            bump(stats_.tooCoarse);
-            return false;
-        }
+        ConvolutionPlan plan = planSoftShadow(whole, site.tris, rec, cs);
+        if (plan.slices.empty()) return Refusal::NoBlocker;
+        site.judged = plan.E_rr;
+        if (site.judged > settings_.eMax) return Refusal::TooCoarse;
         ConvolutionSettings fine = cs;
         fine.resolution = std::clamp(plan.n * kDisplayFactor, std::min(kMinTexture, settings_.maxTexture),
                                      settings_.maxTexture);
@@ -347,56 +390,55 @@ bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
             for (int b = 0; b < k; ++b) {
                 double ds = (frame.s1 - frame.s0) / k, dt = (frame.t1 - frame.t0) / k;
                 SourcePart part = sourcePart(sc, faces, frame, frame.s0 + ds * b, frame.s0 + ds * (b + 1),
-                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(parts.size()));
+                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(site.parts.size()));
                 if (part.pieces.empty()) continue;
-                plans.push_back(planSoftShadow(part.desc, tris, rec, fine));
-                partSettings.push_back(fine);
-                predicted += predictedSeconds(plans.back().fftSize, int(std::max<size_t>(1, plans.back().slices.size())));
-                parts.push_back(std::move(part));
+                site.plans.push_back(planSoftShadow(part.desc, site.tris, rec, fine));
+                site.partSettings.push_back(fine);
+                site.parts.push_back(std::move(part));
             }
     } catch (const std::domain_error&) {
-        bump(stats_.invalid);
-        return false;
+        return Refusal::Invalid;
     } catch (const std::invalid_argument&) {
-        bump(stats_.invalid);
-        return false;
+        return Refusal::Invalid;
     }
-    if (parts.empty()) {
-        bump(stats_.invalid);
-        return false;
-    }
-    if (predicted > settings_.tMax) {
-        bump(stats_.tooSlow);
-        return false;
-    }
-    if (!out) return true;
+    return site.parts.empty() ? Refusal::Invalid : Refusal::None;
+}
+
+// Test 5: the predicted FFT time of all the parts' textures within t_max.
+ConvolutionSites::Refusal ConvolutionSites::withinTimeBudget(const Site& site) const {
+    double predicted = 0;
+    for (const ConvolutionPlan& p : site.plans)
+        predicted += predictedSeconds(p.fftSize, int(std::max<size_t>(1, p.slices.size())));
+    return predicted > settings_.tMax ? Refusal::TooSlow : Refusal::None;
+}
+
+ConvolutionSites::Refusal ConvolutionSites::computeTextures(Site& site, ConvolutionLink& out) {
     auto t0 = std::chrono::steady_clock::now();
-    out->textures.clear();
-    out->pieces.clear();
+    out.textures.clear();
+    out.pieces.clear();
     try {
-        for (size_t j = 0; j < parts.size(); ++j) {
-            out->textures.push_back(std::make_shared<const SoftShadowTexture>(
-                computeSoftShadow(plans[j], parts[j].desc, tris, partSettings[j])));
-            out->pieces.insert(out->pieces.end(), parts[j].pieces.begin(), parts[j].pieces.end());
+        for (size_t j = 0; j < site.parts.size(); ++j) {
+            out.textures.push_back(std::make_shared<const SoftShadowTexture>(
+                computeSoftShadow(site.plans[j], site.parts[j].desc, site.tris, site.partSettings[j])));
+            out.pieces.insert(out.pieces.end(), site.parts[j].pieces.begin(), site.parts[j].pieces.end());
         }
     } catch (const std::domain_error&) {
-        bump(stats_.invalid);
-        return false;
+        return Refusal::Invalid;
     }
     double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    for (double cur = stats_.seconds.load(); !stats_.seconds.compare_exchange_weak(cur, cur + elapsed);) {
+    for (double cur = seconds_.load(); !seconds_.compare_exchange_weak(cur, cur + elapsed);) {
     }
-    out->receiver = r;
-    out->source = s;
-    out->receiverPolygons.clear();
-    for (int p : rpolys)
+    const Scene& sc = h_.scene();
+    out.receiver = site.r;
+    out.source = site.s;
+    out.receiverPolygons.clear();
+    for (int p : site.rpolys)
         if (receivesLight(sc.polygons[size_t(p)]))
-            out->receiverPolygons.push_back(p);
-    out->sourcePolygons = faces;
-    out->blockerTriangles = int(tris.size());
-    out->error = judged;
-    bump(stats_.made);
-    return true;
+            out.receiverPolygons.push_back(p);
+    out.sourcePolygons = site.faces;
+    out.blockerTriangles = int(site.tris.size());
+    out.error = site.judged;
+    return Refusal::None;
 }
 
 }  // namespace penumbra

@@ -20,24 +20,15 @@
 #include "hierarchy/element.h"
 #include "solve/convolution_link.h"
 #include "solve/settings.h"
+#include "util/counters.h"
 #include "visibility/ray_caster.h"
 
 namespace penumbra {
 
-struct ConvolutionStats {
-    std::atomic<size_t> tried{0};        // pairs that reached the blocker selection
-    std::atomic<size_t> noBlocker{0};    // shaft held no blocker: standard links are cheap there
-    std::atomic<size_t> intruder{0};     // an occluder reaches into the source's or receiver's box
-    std::atomic<size_t> invalid{0};      // depth order or geometry the convolution cannot take
-    std::atomic<size_t> tooCoarse{0};    // E_rr > e_max
-    std::atomic<size_t> tooSlow{0};      // predicted time > t_max
-    std::atomic<size_t> made{0};
-    std::atomic<double> seconds{0};      // spent computing textures
-};
-
 class ConvolutionSites {
 public:
-    ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s);
+    // Counts tried pairs and refusals by reason into `counters` (see convolution_site.cpp).
+    ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters);
     // Cheap tests (2.): could r receive a convolution link at all, could s send one.
     bool receiverCandidate(int r) const;
     bool sourceHasEmitters(int s) const;
@@ -48,10 +39,20 @@ public:
     // Whether r could take a link from some emitter group below the cluster s whose transfer is
     // `significant`: the refiner then narrows s down rather than splitting r.
     bool linkPossibleBelow(int r, int s, const std::function<bool(int)>& significant);
-    const ConvolutionStats& stats() const { return stats_; }
+    double textureSeconds() const { return seconds_.load(); }  // spent computing textures
+
+    // Why a pair is not served by a convolution link. NotASite is not counted (the pair never reached
+    // the blocker selection); the others are, as convolution_refused/<reason>.
+    enum class Refusal { None, NotASite, NoBlocker, Intruder, Invalid, TooCoarse, TooSlow };
 
 private:
+    struct Site;  // a pair's polygons, boxes, blockers and plans, filled in by the steps below
     bool evaluate(int r, int s, ConvolutionLink* out);
+    Refusal selectSource(int r, int s, Site& site) const;  // test 2
+    Refusal selectBlockers(Site& site) const;              // test 3
+    Refusal planTextures(Site& site) const;                // test 4
+    Refusal withinTimeBudget(const Site& site) const;      // test 5
+    Refusal computeTextures(Site& site, ConvolutionLink& out);
     bool planarCluster(int c) const { return planar_[size_t(c)]; }
     void nodePolygons(int node, std::vector<int>& out) const;
 
@@ -63,7 +64,8 @@ private:
     std::vector<char> planar_;       // per cluster: all its polygons share one plane
     std::vector<char> hasEmitter_;   // per cluster: some polygon below emits
     std::vector<char> emitterGroup_; // per cluster: every polygon below that sends light emits, on one plane
-    ConvolutionStats stats_;
+    Counters& counters_;
+    std::atomic<double> seconds_{0};
 };
 
 }  // namespace penumbra

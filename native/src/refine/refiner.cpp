@@ -7,10 +7,14 @@
 #include "geometry/form_factor.h"
 #include "hierarchy/node.h"
 #include "hierarchy/predicates.h"
+#include "util/error.h"
 #include "util/parallel.h"
 
 namespace penumbra {
 namespace {
+
+PENUMBRA_COUNTER(kRays, "rays");                 // visibility rays cast
+PENUMBRA_COUNTER(kShaftsClear, "shafts_clear");  // links found fully visible by shaft culling, no rays cast
 
 // Deterministic per-link random numbers: the sample pattern of a link depends only on the identity
 // of its two elements, never on thread timing or allocation order.
@@ -42,15 +46,15 @@ int samplePoints(const Element& e, Vec3* pts) {
 
 }  // namespace
 
-Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s)
-    : h_(h), rays_(rays), settings_(s) {
+Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters)
+    : h_(h), rays_(rays), settings_(s), counters_(counters) {
     const Scene& sc = h.scene();
     threshold_ = s.epsilon * sc.maxEmission;
     double minEdge = s.minSize * sc.diagonal;
     minArea_ = minEdge * minEdge;
     lift_ = 1e-5 * sc.diagonal;
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
-    if (s.convolution) sites_ = std::make_unique<ConvolutionSites>(h, rays, s);
+    if (s.convolution) sites_ = std::make_unique<ConvolutionSites>(h, rays, s, counters);
 }
 
 bool Refiner::tryConvolution(int ri, int si) {
@@ -143,7 +147,6 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
     for (int k = 0; k < s.n; ++k) sInFront |= dot(s.v[k] - r.v[0], nr) > lift_;
     for (int k = 0; k < r.n; ++k) rInFront |= dot(r.v[k] - s.v[0], ns) > lift_;
     if (!sInFront || !rInFront) return false;
-    ++stats_.estimates;
 
     Polygon sp = s.polygonShape();
     // The mean comes from the quadrature points; the spread also looks at the centre and the corners,
@@ -181,7 +184,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l) {
     for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
     for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
     if (rays_.shaftIsClear(rb, sb, r.polygon, s.polygon)) {
-        ++stats_.shaftsClear;
+        counters_.add(kShaftsClear);
         l.V = 1;
         l.F = l.Fmean;
         return;
@@ -207,7 +210,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l) {
                          : s.pointAt((b % m + rng.next()) / m, (b / m + rng.next()) / m)) + ns;
     }
     l.V = float(rays_.unoccludedFraction(from, to, n));
-    stats_.rays += size_t(n);
+    counters_.add(kRays, size_t(n));
     l.F = l.Fmean * l.V;
 }
 
@@ -233,7 +236,7 @@ Vec3 Refiner::pointByLight(int e, double u, double s, double t) const {
     // each step so that stratified u stay stratified; then a point of that leaf.
     for (int fc = h_.firstChild(e); hasSettledChildren(e); fc = h_.firstChild(e)) {
         int k = h_[e].numChildren;
-        double w[4], total = 0;
+        double w[4] = {0, 0, 0, 0}, total = 0;
         for (int j = 0; j < k; ++j) total += (w[j] = maxComponent(h_[fc + j].B) * h_[fc + j].area);
         if (!(total > 0))
             for (int j = 0; j < k; ++j) total += (w[j] = h_[fc + j].area);
@@ -397,17 +400,16 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
     // No face of one end turned toward the other: nothing flows, no link.
     if (!sampleNode(ri, nodeCenter(h_, si), true, seed, n, from)) return false;
     if (!sampleNode(si, nodeCenter(h_, ri), false, seed * 31 + 7, n, to)) return false;
-    ++stats_.estimates;
     Bounds rpad = rb, spad = sb;
     Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
     rpad.extend(rb.lo - pad); rpad.extend(rb.hi + pad);
     spad.extend(sb.lo - pad); spad.extend(sb.hi + pad);
     if (rays_.shaftIsClear(rpad, spad, -1, -1)) {
-        ++stats_.shaftsClear;
+        counters_.add(kShaftsClear);
         l.V = 1;
     } else {
         l.V = float(rays_.unoccludedFraction(from, to, n));
-        stats_.rays += size_t(n);
+        counters_.add(kRays, size_t(n));
     }
     return true;
 }

@@ -14,20 +14,15 @@
 #include "refine/convolution_site.h"
 #include "solve/link.h"
 #include "solve/settings.h"
+#include "util/counters.h"
 #include "util/progress.h"
 #include "visibility/ray_caster.h"
 
 namespace penumbra {
 
-struct RefineStats {
-    std::atomic<size_t> rays{0};
-    std::atomic<size_t> estimates{0};
-    std::atomic<size_t> shaftsClear{0};  // links found fully visible by shaft culling, no rays cast
-};
-
 class Refiner {
 public:
-    Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s);
+    Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters);
 
     // Refines from the root cluster link, or without clusters links every receiving polygon with
     // every polygon that can send it light.
@@ -40,8 +35,6 @@ public:
     double linkError(const Link& l) const;
     // The part of it that comes from a partly hidden source's radiosity varying below it.
     double sourceDeviationError(const Link& l) const;
-    double threshold() const { return threshold_; }
-    const RefineStats& stats() const { return stats_; }
     // Convolution links made so far, in (receiver, source) order; they stand for whole transfers and
     // are never re-judged, so each pair appears once over all passes.
     std::vector<ConvolutionLink> convolutionLinks() const;
@@ -88,7 +81,7 @@ private:
     double minArea_;
     double lift_;  // ray end points are lifted off their surfaces by this much
     int strata_;   // visibility rays = strata_^2
-    RefineStats stats_;
+    Counters& counters_;
     std::atomic<size_t> linkCount_{0};  // links in the list being built
     size_t settled_ = 0;                 // elements at the start of this pass (0 in the first)
     std::unique_ptr<ConvolutionSites> sites_;  // null with convolution off

@@ -6,7 +6,7 @@
 #include <unordered_map>
 #include <sstream>
 
-#include "util/progress.h"
+#include "util/error.h"
 
 namespace penumbra {
 namespace {

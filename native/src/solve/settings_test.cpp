@@ -23,7 +23,9 @@ TEST(Settings, EveryRowIsAnIntervalHoldingItsDefault) {
         EXPECT_TRUE(info.lo == '[' || info.lo == '(') << info.key;
         EXPECT_TRUE(info.hi == ']' || info.hi == ')') << info.key;
         EXPECT_LE(info.min, info.max) << info.key;
-        if constexpr (!std::is_same_v<T, bool>) EXPECT_TRUE(info.contains(double(value))) << info.key;
+        if constexpr (!std::is_same_v<T, bool>) {
+            EXPECT_TRUE(info.contains(double(value))) << info.key;
+        }
     });
     EXPECT_GT(keys.size(), 10u);
 }

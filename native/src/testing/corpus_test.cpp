@@ -150,8 +150,9 @@ TEST(Corpus, SealedBoxInALitRoomStaysExactlyBlack) {
         // The reconstruction at points inside. At epsilon 0.002 it blends in coarse leaves of parallel
         // surfaces a few cm away (the room's floor under the safe's floor): reported, see
         // docs/stability.md; asserted at the default epsilon only.
-        if (eps == Settings{}.epsilon)
+        if (eps == Settings{}.epsilon) {
             for (float x : Probe(t, 4).radiance(*sol)) ASSERT_EQ(x, 0.0f);
+        }
     }
 }
 
@@ -184,8 +185,9 @@ TEST(Corpus, ExtremeAlbedoAndPowerStayFinite) {
         s.maxIterations = 60;
         s.minSize = 0.05;
         auto sol = solveAndCheck(t, s);
-        if (rho == 0)
+        if (rho == 0) {
             for (float x : Probe(t).radiance(*sol)) ASSERT_EQ(x, 0.0f);
+        }
     }
     for (float power : {1e-9f, 1e9f}) {
         auto t = testing::litRoom();

@@ -112,21 +112,6 @@ std::vector<int> RayCaster::occludersInShaft(const Shaft& shaft) const {
     return out;
 }
 
-bool RayCaster::occluded(const Vec3& from, const Vec3& to) const {
-    if (numTriangles_ == 0) return false;
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    RTCRay ray{};
-    Vec3 d = to - from;
-    ray.org_x = float(from.x); ray.org_y = float(from.y); ray.org_z = float(from.z);
-    ray.dir_x = float(d.x); ray.dir_y = float(d.y); ray.dir_z = float(d.z);
-    ray.tnear = 0.0f;
-    ray.tfar = 1.0f;
-    ray.mask = 0xFFFFFFFF;
-    rtcOccluded1(scene_, &ctx, &ray);
-    return ray.tfar < 0.0f;
-}
-
 void RayCaster::visibleMask(const Vec3& from, const Vec3* to, int n, char* visible) const {
     if (numTriangles_ == 0) {
         std::fill(visible, visible + std::max(n, 0), char(1));

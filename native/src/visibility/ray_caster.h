@@ -17,14 +17,12 @@ public:
     RayCaster(const RayCaster&) = delete;
     RayCaster& operator=(const RayCaster&) = delete;
 
-    // True when something blocks the open segment (from, to). Thread-safe.
-    bool occluded(const Vec3& from, const Vec3& to) const;
+    // Every query is thread-safe.
     // Fraction of the n segments (from[i], to[i]) that are unblocked; uses 16-wide packets because a
     // link's samples are coherent (measured 2.4x faster than single rays here).
     double unoccludedFraction(const Vec3* from, const Vec3* to, int n) const;
     // visible[i] = 1 when nothing blocks the open segment (from, to[i]), else 0; 16-wide packets.
     void visibleMask(const Vec3& from, const Vec3* to, int n, char* visible) const;
-    size_t triangles() const { return numTriangles_; }
     // True when no occluding polygon other than the two named ones can cross the shaft between the
     // boxes (Haines-Wallace): every segment between them is then unblocked without casting a ray.
     bool shaftIsClear(const Bounds& a, const Bounds& b, int skipPolygonA, int skipPolygonB) const;

@@ -67,7 +67,7 @@ TEST(RayCaster, ClusterLinksLeaveBuriedFacesDark) {
     int legTop = 0, boxBottom = 0;
     auto t = tableScene(&legTop, &boxBottom);
     auto sol = solve(t.input(), Settings{}, nullptr);
-    ASSERT_GT(sol->report().clusterLinks, 0u);
+    ASSERT_GT(sol->report().count("cluster_links"), 0u);
     const Hierarchy& h = sol->hierarchy();
     double lit = h[0].B.x;  // a floor face
     ASSERT_GT(lit, 0.01);
