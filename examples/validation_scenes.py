@@ -33,6 +33,7 @@ about 0.7 for white surfaces. The standard lamp is an emissive mesh panel (Emiss
   cylinder (r 0.25 m, 1.0 m tall, 32 sides, capped) standing on the floor.
 - small_lamp: a very bright emissive cube of 5 cm (strength 3000) at (0.4, 0.3, 1.5) in the room; nothing else
   emits.
+- cornell: the main job's Cornell box (examples/cornell_box.py), scored per texel like the others.
 
 Every object has its own materials, so a Cycles bake can take all objects in one call. Each scene has a camera
 (the stacked rooms' looks around the sealed upper room), denoising is off (Debian's Cycles has no
@@ -49,7 +50,7 @@ import cornell_box  # noqa: E402
 from scenes import MeshBuilder, _area_light, _black_world, _camera, _diffuse  # noqa: E402
 
 SCENES = ("lamp_gap_1mm", "lamp_gap_5mm", "lamp_gap_2cm", "lamp_gap_10cm", "lamp_gap_5mm_cut", "area_gap_5mm",
-          "sconce_1cm", "desk_lamp", "stacked_rooms", "contacts", "thin_sheet", "curved", "small_lamp")
+          "sconce_1cm", "desk_lamp", "stacked_rooms", "contacts", "thin_sheet", "curved", "small_lamp", "cornell")
 
 W, D, H = 4.0, 3.0, 2.6           # room size (x, y, z)
 CUT_FACE = 0.5                     # face size of lamp_gap_5mm_cut's room; the others' surfaces are single quads
@@ -265,7 +266,8 @@ def build(name, scene=None):
         return build_lamp_gap(0.005, scene, face=CUT_FACE)
     builders = {"area_gap_5mm": build_area_gap, "sconce_1cm": build_sconce, "desk_lamp": build_desk_lamp,
                 "stacked_rooms": build_stacked_rooms, "contacts": build_contacts, "thin_sheet": build_thin_sheet,
-                "curved": build_curved, "small_lamp": build_small_lamp}
+                "curved": build_curved, "small_lamp": build_small_lamp,
+                "cornell": lambda scene=None: cornell_box.build(scene)}  # the main job's scene, per texel
     if name not in builders:
         raise ValueError(f"unknown validation scene {name!r}; known: {', '.join(SCENES)}")
     return builders[name](scene=scene)
