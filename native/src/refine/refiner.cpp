@@ -49,7 +49,20 @@ int samplePoints(const Element& e, Vec3* pts) {
 Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters)
     : h_(h), rays_(rays), settings_(s), counters_(counters) {
     const Scene& sc = h.scene();
-    threshold_ = s.epsilon * sc.maxEmission;
+    // Epsilon is relative to the brightest emitter's exitance, but never to more than 200 times the
+    // mean exitance the emitters would give the receiving surfaces (their flux over the receiving
+    // area): a 5 cm lamp of strength 3000 in a room has a huge exitance and little light, and a
+    // threshold relative to that exitance let the room's bounced light go unrefined (5.9 % RMS on
+    // its floor against a finer solve; 8.2 % against Cycles per 4 x 4 block, 4.9 % with this bound). Rooms whose lamps
+    // cover more than 1/200 of their surfaces (the Cornell box: 1/54) refine exactly as before.
+    double flux = 0, area = 0;
+    for (const ScenePolygon& p : sc.polygons) {
+        flux += p.area * maxComponent(p.emission);
+        if (p.receives && maxComponent(p.rho) > 0) area += p.area;
+    }
+    double scale = sc.maxEmission;
+    if (area > 0 && flux > 0) scale = std::min(scale, 200.0 * flux / area);
+    threshold_ = s.epsilon * scale;
     double minEdge = s.minSize * sc.diagonal;
     minArea_ = minEdge * minEdge;
     lift_ = 1e-5 * sc.diagonal;
