@@ -27,13 +27,15 @@ import time
 import bpy
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from lightmap_uv import UV, unwrap, uv_array  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 import cornell_box  # noqa: E402
 import scenes  # noqa: E402
 
-UV = "Lightmap"
 BOUNCES = 32
 # (epsilon, min_size): the default is the third; finer settings need a smaller min_size to take effect.
 PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.005), (5e-5, 0.002)]
@@ -92,27 +94,6 @@ def prepare(name):
         if o.type == "MESH":
             unwrap(o)
     return receivers
-
-
-def unwrap(ob):
-    me = ob.data
-    me.uv_layers.active = me.uv_layers.new(name=UV)
-    vl = bpy.context.view_layer
-    for o in vl.objects:
-        o.select_set(False)
-    ob.select_set(True)
-    vl.objects.active = ob
-    bpy.ops.object.mode_set(mode="EDIT")
-    bpy.ops.mesh.select_all(action="SELECT")
-    bpy.ops.uv.smart_project(angle_limit=math.radians(66), island_margin=0.02, area_weight=0.0,
-                             correct_aspect=True, scale_to_bounds=False)
-    bpy.ops.object.mode_set(mode="OBJECT")
-
-
-def uv_array(ob):
-    a = np.empty(len(ob.data.loops) * 2, np.float32)
-    ob.data.uv_layers[UV].data.foreach_get("uv", a)
-    return a
 
 
 class Scorer:

@@ -39,12 +39,14 @@ import time
 import bpy
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from lightmap_uv import UV, unwrap, uv_array  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 import validation_scenes  # noqa: E402
 
-UV = "Lightmap"
 BOUNCES = 32
 DARK = 1e-4
 
@@ -80,21 +82,6 @@ def enable_addon():
     return penumbra
 
 
-def unwrap(ob):
-    me = ob.data
-    me.uv_layers.active = me.uv_layers.new(name=UV)
-    vl = bpy.context.view_layer
-    for o in vl.objects:
-        o.select_set(False)
-    ob.select_set(True)
-    vl.objects.active = ob
-    bpy.ops.object.mode_set(mode="EDIT")
-    bpy.ops.mesh.select_all(action="SELECT")
-    bpy.ops.uv.smart_project(angle_limit=math.radians(66), island_margin=0.02, area_weight=0.0,
-                             correct_aspect=True, scale_to_bounds=False)
-    bpy.ops.object.mode_set(mode="OBJECT")
-
-
 def prepare(name):
     """Build the scene and unwrap every mesh; returns the receivers (meshes that do not emit)."""
     from penumbra.compare import _material_emits
@@ -104,12 +91,6 @@ def prepare(name):
         if o.type == "MESH":
             unwrap(o)
     return [n for n, o in obs.items() if o.type == "MESH" and not _material_emits(o)]
-
-
-def uv_array(ob):
-    a = np.empty(len(ob.data.loops) * 2, np.float32)
-    ob.data.uv_layers[UV].data.foreach_get("uv", a)
-    return a
 
 
 def reference(name, receivers, res, samples, cache_dir):
