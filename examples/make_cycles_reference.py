@@ -11,7 +11,6 @@ Bounces are high and clamping is off because both bias a converged radiosity com
 """
 import argparse
 import json
-import math
 import os
 import sys
 import time
@@ -21,6 +20,9 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cornell_box  # noqa: E402
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "bench"))
+from lightmap_uv import unwrap  # noqa: E402  (the same unwrap as the benchmarks')
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -33,23 +35,6 @@ def parse_args():
     ap.add_argument("--bounces", type=int, default=32)
     ap.add_argument("--out", default=os.path.join(REPO, "blender_tests", "data", "cornell_reference.json"))
     return ap.parse_args(argv)
-
-
-def unwrap(ob, uv_name):
-    """smart_project keeps coplanar faces together (blender-facts §4); it works in edit mode only."""
-    me = ob.data
-    layer = me.uv_layers.new(name=uv_name)
-    me.uv_layers.active = layer
-    vl = bpy.context.view_layer
-    for o in vl.objects:
-        o.select_set(False)
-    ob.select_set(True)
-    vl.objects.active = ob
-    bpy.ops.object.mode_set(mode="EDIT")
-    bpy.ops.mesh.select_all(action="SELECT")
-    bpy.ops.uv.smart_project(angle_limit=math.radians(66), island_margin=0.02, area_weight=0.0,
-                             correct_aspect=True, scale_to_bounds=False)
-    bpy.ops.object.mode_set(mode="OBJECT")
 
 
 def main():
