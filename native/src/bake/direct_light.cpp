@@ -159,7 +159,7 @@ Rgb DirectLight::irradiance(const Vec3& p, const Vec3& n, int receiver, DirectSt
         int coarse = std::min(count, 16);
         double vis = visibility(e, p, n, from, coarse, stats);
         if (count > coarse && vis > 0 && vis < 1) vis = visibility(e, p, n, from, count, stats);
-        else if (stats && vis >= 1) ++stats->shaftsClear;
+        else if (stats && vis >= 1) ++stats->seenWhole;
         sum += e.E * (F * vis);
     }
     return sum;

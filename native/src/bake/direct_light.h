@@ -15,7 +15,7 @@
 namespace penumbra {
 
 struct DirectStats {
-    size_t rays = 0, pairs = 0, shaftsClear = 0;  // shaftsClear: pairs the coarse grid saw whole
+    size_t rays = 0, pairs = 0, seenWhole = 0;  // seenWhole: pairs whose coarse points all got through
 };
 
 class DirectLight {
