@@ -47,31 +47,6 @@ struct Probe {
     std::vector<float> radiance(const Solution& s) const { return s.radiance(pts.data(), nrm.data(), pts.size() / 3); }
 };
 
-// Each face's triangles into its own cell of a UV grid.
-std::vector<float> bakeAll(const Solution& sol, const TestScene& t, int size) {
-    std::vector<float> pos, uv;
-    size_t tris = 0;
-    int cells = 1 + int(std::sqrt(2.0 * t.flags.size()));
-    for (size_t p = 0; p < t.flags.size(); ++p) {
-        int nv = t.polygons[p * 4 + 3] < 0 ? 3 : 4;
-        for (int k = 1; k + 1 < nv; ++k, ++tris) {
-            for (int j : {0, k, k + 1}) {
-                const float* q = &t.vertices[size_t(t.polygons[p * 4 + j]) * 3];
-                pos.insert(pos.end(), q, q + 3);
-            }
-            float u0 = float(tris % cells) / cells, v0 = float(tris / cells) / cells, d = 0.9f / cells;
-            uv.insert(uv.end(), {u0, v0, u0 + d, v0, u0, v0 + d});
-        }
-    }
-    LightmapInput in;
-    in.positions = pos.data();
-    in.uvs = uv.data();
-    in.triangles = tris;
-    in.width = in.height = size;
-    in.margin = 2;
-    return sol.bakeLightmap(in);
-}
-
 void expectFiniteNonNegative(const std::vector<float>& v) {
     for (float x : v) {
         ASSERT_TRUE(std::isfinite(x));
@@ -82,7 +57,7 @@ void expectFiniteNonNegative(const std::vector<float>& v) {
 std::unique_ptr<Solution> solveAndCheck(const TestScene& t, const Settings& s = cheap()) {
     auto sol = solve(t.input(), s, nullptr);
     expectFiniteNonNegative(Probe(t).radiance(*sol));
-    expectFiniteNonNegative(bakeAll(*sol, t, 64));
+    expectFiniteNonNegative(testing::bakeAll(*sol, t, 64));
     return sol;
 }
 
@@ -226,7 +201,7 @@ TEST(Corpus, BudgetsStopBeforeAllocating) {
     s = cheap();
     s.maxTexels = 1000;
     auto sol = solve(t.input(), s, nullptr);
-    EXPECT_THROW(bakeAll(*sol, t, 32), BudgetExceeded);
+    EXPECT_THROW(testing::bakeAll(*sol, t, 32), BudgetExceeded);
 }
 
 TEST(Corpus, LightmapsWithOccludersAreBitIdenticalAcrossThreadCounts) {
@@ -235,9 +210,9 @@ TEST(Corpus, LightmapsWithOccludersAreBitIdenticalAcrossThreadCounts) {
     Settings s1 = cheap(), s2 = cheap();
     s1.threads = 1;
     s2.threads = 2;
-    auto a = bakeAll(*solve(t.input(), s1, nullptr), t, 96);
-    auto b = bakeAll(*solve(t.input(), s2, nullptr), t, 96);
-    auto c = bakeAll(*solve(t.input(), s2, nullptr), t, 96);
+    auto a = testing::bakeAll(*solve(t.input(), s1, nullptr), t, 96);
+    auto b = testing::bakeAll(*solve(t.input(), s2, nullptr), t, 96);
+    auto c = testing::bakeAll(*solve(t.input(), s2, nullptr), t, 96);
     ASSERT_EQ(a.size(), b.size());
     float lit = 0;
     for (size_t i = 0; i < a.size(); i += 4) lit = std::max(lit, a[i]);

@@ -56,31 +56,6 @@ std::vector<float> probeRadiance(const Solution& sol, const TestScene& t) {
     return sol.radiance(pts.data(), nrm.data(), pts.size() / 3);
 }
 
-// Every face's triangles in their own cell of a UV grid, baked at size x size.
-std::vector<float> bakeAll(const Solution& sol, const TestScene& t, int size) {
-    std::vector<float> pos, uv;
-    size_t tris = 0;
-    int cells = 1 + int(std::sqrt(2.0 * t.flags.size()));
-    for (size_t p = 0; p < t.flags.size(); ++p) {
-        int nv = t.polygons[p * 4 + 3] < 0 ? 3 : 4;
-        for (int k = 1; k + 1 < nv; ++k, ++tris) {
-            for (int j : {0, k, k + 1}) {
-                const float* q = &t.vertices[size_t(t.polygons[p * 4 + j]) * 3];
-                pos.insert(pos.end(), q, q + 3);
-            }
-            float u0 = float(tris % cells) / cells, v0 = float(tris / cells) / cells, d = 0.9f / cells;
-            uv.insert(uv.end(), {u0, v0, u0 + d, v0, u0, v0 + d});
-        }
-    }
-    LightmapInput in;
-    in.positions = pos.data();
-    in.uvs = uv.data();
-    in.triangles = tris;
-    in.width = in.height = size;
-    in.margin = 2;
-    return sol.bakeLightmap(in);
-}
-
 // The report without its timings, doubles in hexadecimal so that equality is exact. The names are the
 // ones recorded; count() throws for a name the report lacks.
 std::string reportCounts(const Report& r) {
@@ -106,7 +81,7 @@ std::string hex(uint64_t h) {
 
 struct Golden {
     const char* radiance;  // fnv1a of probeRadiance, hex
-    const char* lightmap;  // fnv1a of bakeAll(64), hex
+    const char* lightmap;  // fnv1a of testing::bakeAll(64), hex
     const char* counts;    // reportCounts
 };
 
@@ -116,7 +91,7 @@ void expectGolden(const TestScene& t, const Settings& s, const Golden& want) {
     auto sol = solve(t.input(), s, nullptr);
     setFftDeterministic(false);
     EXPECT_EQ(hex(fnv1a(probeRadiance(*sol, t))), want.radiance);
-    EXPECT_EQ(hex(fnv1a(bakeAll(*sol, t, 64))), want.lightmap);
+    EXPECT_EQ(hex(fnv1a(testing::bakeAll(*sol, t, 64))), want.lightmap);
     EXPECT_EQ(reportCounts(sol->report()), want.counts);
     size_t names = 0;  // the 19 names above and no other (util/counters_test.cpp declares "test/...")
     for (const auto& kv : sol->report().counts) names += kv.first.rfind("test/", 0) != 0;

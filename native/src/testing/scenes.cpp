@@ -1,5 +1,9 @@
 #include "testing/scenes.h"
 
+#include <cmath>
+
+#include "penumbra.h"
+
 namespace penumbra::testing {
 
 int TestScene::quad(Vec3 a, Vec3 b, Vec3 c, Vec3 d, Rgb rho, Rgb emit, uint8_t flag, int object) {
@@ -84,6 +88,30 @@ TestScene litRoom() {
     double z = 1.96875, s = 0.25;  // exact in float32 even 1e5 from the origin
     t.quad({-s, -s, z}, {-s, s, z}, {s, s, z}, {s, -s, z}, {}, {30, 30, 30}, kLightOnly, 2);
     return t;
+}
+
+std::vector<float> bakeAll(const Solution& sol, const TestScene& t, int size) {
+    std::vector<float> pos, uv;
+    size_t tris = 0;
+    int cells = 1 + int(std::sqrt(2.0 * t.flags.size()));
+    for (size_t p = 0; p < t.flags.size(); ++p) {
+        int nv = t.polygons[p * 4 + 3] < 0 ? 3 : 4;
+        for (int k = 1; k + 1 < nv; ++k, ++tris) {
+            for (int j : {0, k, k + 1}) {
+                const float* q = &t.vertices[size_t(t.polygons[p * 4 + j]) * 3];
+                pos.insert(pos.end(), q, q + 3);
+            }
+            float u0 = float(tris % cells) / cells, v0 = float(tris / cells) / cells, d = 0.9f / cells;
+            uv.insert(uv.end(), {u0, v0, u0 + d, v0, u0, v0 + d});
+        }
+    }
+    LightmapInput in;
+    in.positions = pos.data();
+    in.uvs = uv.data();
+    in.triangles = tris;
+    in.width = in.height = size;
+    in.margin = 2;
+    return sol.bakeLightmap(in);
 }
 
 }  // namespace penumbra::testing

@@ -5,6 +5,10 @@
 
 #include "scene/scene.h"
 
+namespace penumbra {
+class Solution;
+}
+
 namespace penumbra::testing {
 
 struct TestScene {
@@ -29,5 +33,8 @@ TestScene furnaceBox(double size, int n, Rgb rho, Rgb emit);
 // A closed room [-1,1]^2 x [0,2] (object 0 "Room") with a block on the floor (1 "Block") and a
 // downward lamp under the ceiling (2 "Lamp", light-only): shadows and interreflection in 19 faces.
 TestScene litRoom();
+
+// Every face's triangles in their own cell of a UV grid, baked by `sol` at size x size texels.
+std::vector<float> bakeAll(const Solution& sol, const TestScene& t, int size);
 
 }  // namespace penumbra::testing
