@@ -3,10 +3,34 @@
 #include <algorithm>
 #include <cmath>
 
+#include "geometry/form_factor.h"
 #include "hierarchy/predicates.h"
 
 namespace penumbra {
 namespace {
+
+// Within a few of its own widths an element no longer looks like a point from y: the disc
+// estimate A cos cos / (pi r^2 + A) from its centre misses what a face tilted away from that centre
+// sees. There the exact point-to-polygon form factor is used; farther out the estimate's error is
+// largest at grazing incidence, where little light arrives.
+constexpr double kNearField2 = 16.0;  // (r / sqrt(A))^2 below which the exact form factor is used
+
+// Irradiance at (y, n) per unit radiosity of element e, lying on a plane with normal en.
+double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n) {
+    Vec3 d = y - e.center;
+    double r2 = length2(d);
+    if (r2 <= 0) return 0;
+    if (n && r2 < kNearField2 * e.area) {
+        double h = dot(en, y - e.v[0]);  // y must lie in front of e's plane (e sends one way)
+        if (h <= 0) return 0;
+        return pointToPolygonFormFactor(y, *n, e.polygonShape());
+    }
+    double r = std::sqrt(r2);
+    double cj = dot(en, d) / r;
+    double cy = n ? -dot(*n, d) / r : 1.0;
+    if (cj <= 0 || cy <= 0) return 0;
+    return e.area * cj * cy / (M_PI * r2 + e.area);
+}
 
 double boxDistance(const Bounds& a, const Bounds& b) {
     double d2 = 0;
@@ -36,14 +60,7 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     const Scene& sc = h.scene();
     if (!isClusterNode(source)) {
         const Element& e = h[size_t(source)];
-        Vec3 d = y - e.center;
-        double r2 = length2(d);
-        if (r2 <= 0) return {};
-        double r = std::sqrt(r2);
-        double cj = dot(sc.polygons[e.polygon].normal, d) / r;
-        double cy = n ? -dot(*n, d) / r : 1.0;
-        if (cj <= 0 || cy <= 0) return {};
-        return e.B * (e.area * cj * cy / (M_PI * r2 + e.area));
+        return e.B * elementKernel(e, sc.polygons[e.polygon].normal, y, n);
     }
     const ClusterTree& ct = h.clusters();
     const Cluster& c = ct[clusterIndex(source)];
@@ -59,13 +76,7 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
             int p = ct.polygons()[size_t(k)];
             const Element& e = h[size_t(p)];
             if (maxComponent(e.B) <= 0) continue;
-            Vec3 dj = y - e.center;
-            double rj2 = length2(dj);
-            if (rj2 <= 0) continue;
-            double rj = std::sqrt(rj2);
-            double cj = dot(sc.polygons[size_t(p)].normal, dj) / rj;
-            double cyj = n ? -dot(*n, dj) / rj : 1.0;
-            if (cj > 0 && cyj > 0) sum += e.B * (e.area * cj * cyj / (M_PI * rj2 + e.area));
+            sum += e.B * elementKernel(e, sc.polygons[size_t(p)].normal, y, n);
         }
         return sum;
     }

@@ -160,6 +160,15 @@ void RayCaster::visibleMask(const Vec3& from, const Vec3* to, int n, char* visib
                 [&](int k, bool v) { visible[k] = v ? 1 : 0; });
 }
 
+void RayCaster::visiblePairs(const Vec3* from, const Vec3* to, int n, char* visible) const {
+    if (numTriangles_ == 0) {
+        std::fill(visible, visible + std::max(n, 0), char(1));
+        return;
+    }
+    castPackets(scene_, n, [&](int k) { return std::make_pair(from[k], to[k]); },
+                [&](int k, bool v) { visible[k] = v ? 1 : 0; });
+}
+
 double RayCaster::unoccludedFraction(const Vec3* from, const Vec3* to, int n) const {
     if (n <= 0) return 1.0;
     if (numTriangles_ == 0) return 1.0;
