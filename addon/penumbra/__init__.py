@@ -70,6 +70,11 @@ def _settings(given):
     s["targets"] = frozenset(s["targets"] if not isinstance(s["targets"], str) else {s["targets"]})
     if not s["targets"] or not s["targets"] <= TARGETS:
         raise ValueError(f"targets must be a non-empty subset of {sorted(TARGETS)}, got {sorted(s['targets'])}")
+    if not isinstance(s["selection_only"], bool):
+        raise TypeError(f"selection_only must be True or False, got {s['selection_only']!r}")
+    for key in ("uv_map", "output_dir"):
+        if s[key] is not None and not isinstance(s[key], str):
+            raise TypeError(f"{key} must be a string or None, got {s[key]!r}")
     for key, lo, hi in (("resolution", 8, MAX_RESOLUTION), ("margin", 0, 1024)):
         v = s[key]
         if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
@@ -168,21 +173,38 @@ class Job:
             raise BakeError(f"object(s) removed or renamed while the bake ran: {', '.join(gone)}; bake again")
         report, s = self.report, self.settings
         step = _stepper(progress)
-        with _object_mode(scene, vl):
+        t = time.perf_counter()
+
+        def before_commit(baked, outputs):
+            # The last stage reports before anything is committed: a cancel or an error raised at "done"
+            # still leaves the .blend and the output folder as they were.
+            report["times"]["write_back"] = time.perf_counter() - t
+            report["objects_baked"] = list(baked)
+            report["outputs"] = outputs
+            report["times"]["total"] = time.perf_counter() - self._t_start
+            step("done", 1.0)
+
+        with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
-            t = time.perf_counter()
             ws = dict(s)
             if ws["output_dir"]:
-                ws["output_dir"] = bpy.path.abspath(ws["output_dir"])
+                ws["output_dir"] = _output_dir(ws["output_dir"])
             # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
-            outputs = writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws,
-                                          report, progress=step if progress is not None else None)
-            report["times"]["write_back"] = time.perf_counter() - t
-            report["objects_baked"] = list(self.exported.bake_objects)
-            report["outputs"] = outputs
-            step("done", 1.0)
-        report["times"]["total"] = time.perf_counter() - self._t_start
+            writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
+                                progress=step if progress is not None else None, before_commit=before_commit)
         return _jsonable(report)
+
+
+def _output_dir(path):
+    """The absolute output folder; a '//' path needs a saved .blend to be relative to."""
+    import bpy
+    if path.startswith("//") and not bpy.data.filepath:
+        raise BakeError(f"output_dir '{path}' is relative to the .blend file, which has not been saved yet: "
+                        f"save the file first or give an absolute folder")
+    out = os.path.abspath(bpy.path.abspath(path))
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise BakeError(f"output_dir '{out}' is a file, not a folder")
+    return out
 
 
 def _stepper(progress):
@@ -233,7 +255,14 @@ def begin(scene=None, progress=None, **settings):
               "skipped": []}
     t_start = time.perf_counter()
     step = _stepper(progress)
-    with _object_mode(scene, vl):
+    if s["output_dir"]:
+        _output_dir(s["output_dir"])          # a bad folder is refused before the solve, not after it
+    if bpy.context.scene != scene and bpy.context.window is None and "LIGHTMAP" in s["targets"] \
+            and not s["uv_map"]:
+        raise BakeError(f"the scene '{scene.name}' is not the active scene and there is no window to switch "
+                        f"to it for unwrapping the lightmap UVs: make it the active scene, or name an existing "
+                        f"UV map with the uv_map setting")
+    with _object_mode(scene, vl), export.render_visibility(scene, vl):
         step("export", 0.0)
         t = time.perf_counter()
         ex = export.export_scene(scene, vl, _depsgraph(scene, vl), s["selection_only"])
@@ -264,8 +293,6 @@ def begin(scene=None, progress=None, **settings):
             missing = [n for n in ex.bake_objects if s["uv_map"] not in bpy.data.objects[n].data.uv_layers]
             if missing:
                 raise BakeError(f"UV map '{s['uv_map']}' is missing on: {', '.join(missing)}")
-        if s["output_dir"]:
-            os.makedirs(bpy.path.abspath(s["output_dir"]), exist_ok=True)
     return Job(scene, vl, s, solver_settings, ex, report, t_start)
 
 
@@ -294,9 +321,12 @@ def preview(scene, on):
 
 
 def clear(scene):
-    """Remove what bakes made in this scene (preview materials, images, attributes, created UV maps)."""
+    """Remove what bakes made in this scene (preview materials, images, attributes, created UV maps), and
+    Penumbra's own images that no object's bake refers to any more (their object was deleted)."""
     _preview.set_preview(scene, False)
-    return [ob.name for ob in scene.objects if ob.type == "MESH" and writeback.remove_bake(ob)]
+    cleared = [ob.name for ob in scene.objects if ob.type == "MESH" and writeback.remove_bake(ob)]
+    writeback.remove_orphan_images()
+    return cleared
 
 
 def summary(report):
