@@ -46,6 +46,14 @@ def test_rebake_with_the_preview_on_gives_the_same_lightmaps(empty_scene, penumb
         again = helpers.image_pixels(bpy.data.images["Penumbra_" + n])
         assert again[..., :3].max() > 0.05, f"{n} baked black with the preview on"
         np.testing.assert_allclose(again, px, rtol=1e-5, atol=1e-7)
+    # The Bake button's path (the panel's settings): the same with the preview on as off.
+    empty_scene.penumbra.resolution, empty_scene.penumbra.epsilon = FAST["resolution"], FAST["epsilon"]
+    penumbra.preview(empty_scene, False)
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    ref = helpers.image_pixels(bpy.data.images["Penumbra_Floor"]).copy()
+    penumbra.preview(empty_scene, True)
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    np.testing.assert_allclose(helpers.image_pixels(bpy.data.images["Penumbra_Floor"]), ref, rtol=1e-5, atol=1e-7)
     # The preview stays on, now showing the new bake, and switches off to the user's own materials.
     floor = bpy.data.objects["Floor"]
     assert floor.get("penumbra_preview") is not None
@@ -209,7 +217,10 @@ def test_viewport_hidden_objects_are_baked_and_cast(empty_scene, penumbra):
     coll.objects.link(in_coll)
     in_coll.location.z = 0.6
     bpy.context.view_layer.layer_collection.children["HiddenColl"].hide_viewport = True
+    floor.select_set(True)
+    selected = {o.name: o.select_get() for o in bpy.data.objects}
     report = penumbra.bake(empty_scene, **FAST)
+    assert {o.name: o.select_get() for o in bpy.data.objects} == selected
     for n in ("EyeHidden", "MonitorHidden", "InHiddenCollection"):
         assert n in report["objects_baked"], report["skipped"]
     assert _covered_mean(floor, "Penumbra_Floor") < 0.9 * open_mean         # their shadow is there
