@@ -320,6 +320,12 @@ def test_geometry_nodes_object_without_its_uv_map_is_skipped_not_fatal(empty_sce
     box = helpers.quad_object("GNBox", 0.1, 0.1, z=0.4)
     _geometry_nodes_cube(box)
     box.location.z = 0.4
+    before = helpers.blend_state()
+    job = penumbra.begin(empty_scene, **FAST)
+    # Found before the solve, and the check leaves the mesh as it was.
+    assert "GNBox" not in job.exported.bake_objects and "Floor" in job.exported.bake_objects
+    assert any(x["name"] == "GNBox" and "UV map" in x["reason"] for x in job.report["skipped"])
+    helpers.assert_same_state(before, helpers.blend_state())
     report = penumbra.bake(empty_scene, **FAST)
     assert "Floor" in report["objects_baked"] and "GNBox" not in report["objects_baked"]
     reasons = {x["name"]: x["reason"] for x in report["skipped"]}

@@ -272,6 +272,14 @@ def begin(scene=None, progress=None, **settings):
             ex.bake_objects.remove(name)
             ex.skip(name, "not baked: 'Bake' is off in its Object Properties > Penumbra (it still casts and "
                           "reflects light)")
+        if "LIGHTMAP" in s["targets"]:
+            for name in _uv_dropped(scene, vl, ex.bake_objects, s["uv_map"] or writeback.UV_NAME):
+                ex.bake_objects.remove(name)
+                reason = (f"not baked: its modifiers do not keep the UV map '{s['uv_map'] or writeback.UV_NAME}'"
+                          f" (geometry nodes that build new geometry, Remesh, ... drop it); it still casts and "
+                          f"reflects light")
+                ex.skip(name, reason)
+                ex.warnings.append(f"object '{name}': {reason}")
         report["skipped"] = ex.skipped
         report["warnings"] += ex.warnings
         report["notes"] += ex.notes
@@ -294,6 +302,43 @@ def begin(scene=None, progress=None, **settings):
             if missing:
                 raise BakeError(f"UV map '{s['uv_map']}' is missing on: {', '.join(missing)}")
     return Job(scene, vl, s, solver_settings, ex, report, t_start)
+
+
+def _uv_dropped(scene, vl, names, uv_name):
+    """The objects whose modifiers would lose the lightmap UV map, found before the solve rather than after
+    it. A UV map the bake would create is added for the check and removed again."""
+    import bpy
+    candidates = [bpy.data.objects[n] for n in names if len(bpy.data.objects[n].modifiers)]
+    if not candidates:
+        return []
+    added, checked = [], []
+    try:
+        for ob in candidates:
+            me = ob.data
+            if uv_name not in me.uv_layers:
+                if len(me.uv_layers) >= 8 or me.library is not None:
+                    continue           # cannot try; the write-back reports it if it comes to that
+                me.uv_layers.new(name=uv_name, do_init=False)
+                me.update_tag()
+                added.append(me.name_full)
+            checked.append(ob)
+        dg = _depsgraph(scene, vl)
+        lost = []
+        for ob in checked:
+            ob_eval = ob.evaluated_get(dg)
+            me = ob_eval.to_mesh()
+            try:
+                if uv_name not in me.uv_layers:
+                    lost.append(ob.name)
+            finally:
+                ob_eval.to_mesh_clear()
+        return lost
+    finally:
+        for mesh_name in added:
+            me = bpy.data.meshes.get(mesh_name)
+            if me is not None and uv_name in me.uv_layers:
+                me.uv_layers.remove(me.uv_layers[uv_name])
+                me.update_tag()
 
 
 def _skipped_text(skipped):
