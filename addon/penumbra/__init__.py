@@ -22,6 +22,8 @@ import os
 import sys
 import time
 
+import numpy as np
+
 
 def _native_mismatch(err):
     here = os.path.dirname(os.path.abspath(__file__))
@@ -159,6 +161,14 @@ class Job:
         self.solution = solution
         return self
 
+    def _black_objects(self):
+        ex = self.exported
+        if not len(ex.reflectance):
+            return set()
+        peak = np.zeros(len(ex.object_names))
+        np.maximum.at(peak, ex.object_index, ex.reflectance.max(axis=1))
+        return {n for n, p in zip(ex.object_names, peak) if p <= 0}
+
     def finish(self, progress=None):
         """Write the solved bake into the scene (main thread); all or nothing. Returns the report."""
         import bpy
@@ -191,7 +201,8 @@ class Job:
                 ws["output_dir"] = _output_dir(ws["output_dir"])
             # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
             writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
-                                progress=step if progress is not None else None, before_commit=before_commit)
+                                progress=step if progress is not None else None, before_commit=before_commit,
+                                black=self._black_objects())
         return _jsonable(report)
 
 

@@ -304,13 +304,15 @@ def _check_front_light(ob, ob_eval, matrix, solution, report):
             f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals)")
 
 
-def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report, files):
+def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report, files, reflects=True):
     """Rasterise and store one object's bake. Nothing here replaces earlier results: that is the commit."""
     targets = settings["targets"]
     res, margin = settings["resolution"], settings["margin"]
     ob_eval = ob.evaluated_get(dg)
     matrix = np.array(ob_eval.matrix_world, np.float64)
-    _check_front_light(ob, ob_eval, matrix, solution, report)
+    if reflects:
+        # A black object reflects nothing whatever it receives, so its zero radiance says nothing of sides.
+        _check_front_light(ob, ob_eval, matrix, solution, report)
     old = baked_state(ob)
     record = {"uv_map": uv_name, "uv_created": bool(uv_created or old.get("uv_created", False)) and
               uv_name == UV_NAME}
@@ -487,14 +489,15 @@ class _active_scene:
 
 
 def write_all(scene, view_layer, object_names, solution, native, settings, report, progress=None,
-              before_commit=None):
+              before_commit=None, black=()):
+    """`black`: names of objects whose every face has albedo 0 (no side check for them)."""
     with _active_scene(scene, view_layer):
         return _write_all(scene, view_layer, object_names, solution, native, settings, report, progress,
-                          before_commit)
+                          before_commit, frozenset(black))
 
 
-def _write_all(scene, view_layer, object_names, solution, native, settings, report, progress=None,
-               before_commit=None):
+def _write_all(scene, view_layer, object_names, solution, native, settings, report, progress, before_commit,
+               black):
     """Unwrap, rasterise and store every baked object; all or nothing, on disk too: lightmap files are
     written under temporary names and moved into place only at the commit. `before_commit(outputs)` runs
     last before the commit; whatever it raises rolls everything back."""
@@ -546,7 +549,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                 progress("write-back", i / max(len(baked), 1))
             ob = bpy.data.objects[name]
             outputs[name] = write_object(ob, solution, native, dg, uv[name][0], uv[name][1], settings, tx,
-                                         report, files)
+                                         report, files, reflects=name not in black)
         if before_commit is not None:
             before_commit(baked, outputs)
         for tmp, path in files.items():
