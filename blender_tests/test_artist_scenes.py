@@ -363,3 +363,35 @@ def test_clear_removes_the_images_of_deleted_objects(empty_scene, penumbra):
     assert "Penumbra_ShortBlock" not in bpy.data.images
     assert "Penumbra_Mine" in bpy.data.images
     assert not [i for i in bpy.data.images if i.get("penumbra")]
+
+
+# ------------------------------------------------------------------------------------------- linked data
+
+def test_linked_objects_take_part_even_when_hidden_in_the_viewport(empty_scene, penumbra, tmp_path):
+    """Library data is read-only: a linked mesh casts but is not baked; one hidden in the viewport (its
+    visibility flags stay editable in the linking file) is exported like a local one, and stays hidden."""
+    lib = str(tmp_path / "lib.blend")
+    _occluder("LinkedCard")
+    hidden = _occluder("LinkedHidden")
+    hidden.location.x = 0.8
+    hidden.hide_viewport = True
+    bpy.ops.wm.save_as_mainfile(filepath=lib)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    floor = _lit_floor()
+    with bpy.data.libraries.load(lib, link=True) as (src, dst):
+        dst.objects = ["LinkedCard", "LinkedHidden"]
+    for ob in dst.objects:
+        scene.collection.objects.link(ob)
+    before = helpers.blend_state()
+    report = penumbra.bake(scene, **FAST)
+    reasons = {x["name"]: x["reason"] for x in report["skipped"]}
+    assert "linked from a library" in reasons["LinkedCard"]
+    assert "linked from a library" in reasons["LinkedHidden"]
+    assert report["objects_baked"] == ["Floor"]
+    assert report["export"]["objects"] == 4            # floor, lamp and both linked cards
+    after = helpers.blend_state()
+    for key in ("images", "meshes"):
+        for name in ("LinkedCard", "LinkedHidden"):
+            assert after[key].get(name) == before[key].get(name)
+    assert bpy.data.objects["LinkedHidden"].hide_viewport

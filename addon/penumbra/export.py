@@ -305,11 +305,14 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
     not_rendered = set()
     non_mesh = {}                    # curve, text, ... object name -> type
     own_surface = set()              # of those, the ones whose evaluated surface was exported
+    seen = set()
     for inst in depsgraph.object_instances:
         ob_eval = inst.object
         original = ob_eval.original
         is_inst = inst.is_instance
         owner = inst.parent.original if is_inst and inst.parent is not None else original
+        if not is_inst:
+            seen.add(original.name_full)
         if not is_inst and not inst.show_self:
             continue
         if owner.name_full not in rendered or (is_inst and original.hide_render):
@@ -402,6 +405,11 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             mesh_owner[original.data.name_full] = original.name
             res.bake_objects.append(original.name)
 
+    for name_full, ob in rendered.items():
+        if name_full not in seen and ob.type in ("MESH", "LIGHT") + NO_SURFACE_TYPES:
+            # render_visibility could not show it (linked, read-only flags), so the depsgraph left it out.
+            res.skip(ob.name, "not exported: Cycles renders it, but it is hidden in the viewport and its "
+                              "visibility cannot be changed for the bake (linked data); show it to include it")
     for name, kind in non_mesh.items():
         if name in own_surface:
             res.skip(name, f"not baked: {kind} object; its surface takes part in the solve (casts and reflects "
