@@ -237,7 +237,11 @@ def test_render_hidden_object_is_neither_baked_nor_casts(empty_scene, penumbra):
     open_px = helpers.image_pixels(bpy.data.images["Penumbra_Floor"]).copy()
     card = _occluder("NotRendered")
     card.hide_render = True
+    empty = bpy.data.objects.new("HelperEmpty", None)      # nothing to render either way: not reported
+    empty.hide_render = True
+    empty_scene.collection.objects.link(empty)
     report = penumbra.bake(empty_scene, **FAST)
+    assert "HelperEmpty" not in [x["name"] for x in report["skipped"]]
     assert "NotRendered" not in report["objects_baked"]
     reasons = {x["name"]: x["reason"] for x in report["skipped"]}
     assert "renders" in reasons["NotRendered"]

@@ -317,7 +317,8 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             continue
         if owner.name_full not in rendered or (is_inst and original.hide_render):
             # Cycles does not render it, so it must neither be baked nor cast shadows.
-            if not is_inst and owner.name_full not in not_rendered:
+            if not is_inst and owner.name_full not in not_rendered and \
+                    original.type in ("MESH", "LIGHT") + NO_SURFACE_TYPES:
                 not_rendered.add(owner.name_full)
                 res.skip(owner.name, "not exported: disabled in renders (camera icon of the object or its "
                                      "collection), as in Cycles")
