@@ -132,6 +132,9 @@ def test_array_copies_sharing_lightmap_texels_are_warned(empty_scene, penumbra):
     tile_w = [w for w in report["warnings"] if "'Tile'" in w and "shared" in w]
     assert len(tile_w) == 1 and "Array" in tile_w[0] and "100 %" in tile_w[0], report["warnings"]
     assert not [w for w in report["warnings"] if "'Floor'" in w and "shared" in w]
+    # The attribute's warning no longer claims the lightmap is right for the copies.
+    topo = [w for w in report["warnings"] if "'Tile'" in w and "topology" in w]
+    assert len(topo) == 1 and "lightmap follows" not in topo[0]
     assert "Tile" in report["objects_baked"] and floor.name in report["objects_baked"]
 
 

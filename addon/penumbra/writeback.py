@@ -318,6 +318,7 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
               uv_name == UV_NAME}
     outputs = {}
 
+    shared = 0.0
     if "LIGHTMAP" in targets:
         positions, uvs = lightmap_inputs(ob_eval, uv_name, matrix)
         if len(uvs) and (uvs.min() < -1e-4 or uvs.max() > 1 + 1e-4):
@@ -386,9 +387,14 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             if len(me_eval.loops) == len(base.loops) and len(me_eval.polygons) == len(base.polygons):
                 pts, nrm = corner_samples(me_eval, matrix)
             else:
+                # Not "the lightmap follows the modified surface" when the modifier's copies share texels:
+                # then neither target is right for the copies, and the overlap warning says so.
+                follows = "" if shared > OVERLAP_WARN or "LIGHTMAP" not in targets else \
+                    " (the lightmap follows the modified surface)"
                 report["warnings"].append(
-                    f"object '{ob.name}': modifiers change the topology, so the '{ATTRIBUTE}' attribute is "
-                    f"computed on the base mesh (the lightmap follows the modified surface)")
+                    f"object '{ob.name}': modifiers change the topology, so the colour attribute holds the "
+                    f"light of the mesh before its modifiers, and the faces they add show that light too"
+                    f"{follows}")
                 pts, nrm = corner_samples(base, matrix)
         finally:
             ob_eval.to_mesh_clear()
