@@ -372,6 +372,21 @@ def test_clear_removes_the_images_of_deleted_objects(empty_scene, penumbra):
     assert not [i for i in bpy.data.images if i.get("penumbra")]
 
 
+def test_the_view_layer_baked_is_named_when_there_are_several(empty_scene, penumbra):
+    _lit_floor()
+    coll = bpy.data.collections.new("Props")
+    empty_scene.collection.children.link(coll)
+    card = _occluder("Prop")
+    empty_scene.collection.objects.unlink(card)
+    coll.objects.link(card)
+    other = empty_scene.view_layers.new("NoProps")
+    other.layer_collection.children["Props"].exclude = True
+    report = penumbra.bake(empty_scene, **FAST)
+    assert "Prop" in report["objects_baked"]
+    notes = [n for n in report["notes"] if "view layer" in n]
+    assert len(notes) == 1 and f"'{bpy.context.view_layer.name}'" in notes[0] and "NoProps" in notes[0]
+
+
 # ------------------------------------------------------------------------------------------- linked data
 
 def test_linked_objects_take_part_even_when_hidden_in_the_viewport(empty_scene, penumbra, tmp_path):

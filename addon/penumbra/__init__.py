@@ -291,6 +291,11 @@ def begin(scene=None, progress=None, **settings):
                           f"reflects light")
                 ex.skip(name, reason)
                 ex.warnings.append(f"object '{name}': {reason}")
+        used = [v.name for v in scene.view_layers if v.use]
+        if len(used) > 1:
+            # Cycles renders every enabled view layer on its own; one bake can match only one of them.
+            ex.notes.append(f"baked what view layer '{vl.name}' shows; the scene has {len(used)} view layers "
+                            f"({', '.join(used)}) and objects excluded or hidden in '{vl.name}' are left out")
         report["skipped"] = ex.skipped
         report["warnings"] += ex.warnings
         report["notes"] += ex.notes
