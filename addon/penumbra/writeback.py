@@ -3,7 +3,8 @@
 The write-back is a transaction. Every change is recorded with a way to undo it; anything that can fail
 (unwrapping, rasterising, writing files) happens before the commit, which only swaps the new data for what an
 earlier bake made. On any exception the recorded changes are undone in reverse order, so the .blend is left as
-it was before the bake.
+it was before the bake. Files are part of it: lightmaps go to temporary names that replace the old files only
+at the commit, and folders the bake created are removed again.
 """
 import math
 import os
