@@ -103,3 +103,24 @@ def test_cli_exit_codes(empty_scene, tmp_path):
     assert r.returncode == 3 and "nothing to bake" in r.stderr
     r = _run(blend, "--out", str(tmp_path / "empty"), "--scene", "Nope")
     assert r.returncode == 2 and "no scene named 'Nope'" in r.stderr
+
+
+def test_cli_out_naming_a_file_and_unwritable_save_exit_with_the_documented_codes(empty_scene, tmp_path):
+    cornell_box.build()
+    blend = str(tmp_path / "box.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend, copy=True)
+    a_file = tmp_path / "not_a_folder"
+    a_file.write_text("x")
+    r = _run(blend, "--out", str(a_file), "--resolution", "16")
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert "is a file" in r.stderr and "Traceback" not in r.stderr
+    assert a_file.read_text() == "x"
+    for save in (str(tmp_path / "missing" / "x.blend"), str(tmp_path)):
+        out = tmp_path / "o"
+        r = _run(blend, "--out", str(out), "--resolution", "16", "--save", save)
+        assert r.returncode == 2, r.stderr[-2000:]
+        assert "Traceback" not in r.stderr and "--save" in r.stderr
+        report = json.loads((out / "report.json").read_text())
+        assert report["exit_code"] == 2 and "--save" in report["error"]
+        # Refused before the bake: no lightmap was written for a run that failed.
+        assert sorted(p.name for p in out.iterdir()) == ["report.json"]

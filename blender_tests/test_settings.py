@@ -159,7 +159,8 @@ def test_messages_name_what_to_fix(empty_scene):
     cornell_box.build()
     empty_scene.penumbra.epsilon = 0.004
     lamp = bpy.data.objects["Lamp"]
-    lamp.hide_set(True)
+    # Off in renders, so not exported (hidden only in the viewport, Cycles would still render it).
+    lamp.hide_render = True
     point = bpy.data.objects.new("Bulb", bpy.data.lights.new("Bulb", "POINT"))
     empty_scene.collection.objects.link(point)
     before = helpers.blend_state()
@@ -167,7 +168,7 @@ def test_messages_name_what_to_fix(empty_scene):
     assert "nothing emits light" in msg and "Bulb" in msg and "POINT light is not supported" in msg
     helpers.assert_same_state(before, helpers.blend_state())
     assert empty_scene.penumbra.last_report == ""
-    lamp.hide_set(False)
+    lamp.hide_render = False
     # A face-less mesh and a material that cannot be read are reported by name, and the bake goes on.
     edges = bpy.data.meshes.new("Wire")
     edges.from_pydata([(0, 0, 0.5), (0.1, 0, 0.5)], [(0, 1)], [])

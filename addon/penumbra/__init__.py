@@ -22,6 +22,8 @@ import os
 import sys
 import time
 
+import numpy as np
+
 
 def _native_mismatch(err):
     here = os.path.dirname(os.path.abspath(__file__))
@@ -70,6 +72,11 @@ def _settings(given):
     s["targets"] = frozenset(s["targets"] if not isinstance(s["targets"], str) else {s["targets"]})
     if not s["targets"] or not s["targets"] <= TARGETS:
         raise ValueError(f"targets must be a non-empty subset of {sorted(TARGETS)}, got {sorted(s['targets'])}")
+    if not isinstance(s["selection_only"], bool):
+        raise TypeError(f"selection_only must be True or False, got {s['selection_only']!r}")
+    for key in ("uv_map", "output_dir"):
+        if s[key] is not None and not isinstance(s[key], str):
+            raise TypeError(f"{key} must be a string or None, got {s[key]!r}")
     for key, lo, hi in (("resolution", 8, MAX_RESOLUTION), ("margin", 0, 1024)):
         v = s[key]
         if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
@@ -154,6 +161,14 @@ class Job:
         self.solution = solution
         return self
 
+    def _black_objects(self):
+        ex = self.exported
+        if not len(ex.reflectance):
+            return set()
+        peak = np.zeros(len(ex.object_names))
+        np.maximum.at(peak, ex.object_index, ex.reflectance.max(axis=1))
+        return {n for n, p in zip(ex.object_names, peak) if p <= 0}
+
     def finish(self, progress=None):
         """Write the solved bake into the scene (main thread); all or nothing. Returns the report."""
         import bpy
@@ -168,21 +183,39 @@ class Job:
             raise BakeError(f"object(s) removed or renamed while the bake ran: {', '.join(gone)}; bake again")
         report, s = self.report, self.settings
         step = _stepper(progress)
-        with _object_mode(scene, vl):
+        t = time.perf_counter()
+
+        def before_commit(baked, outputs):
+            # The last stage reports before anything is committed: a cancel or an error raised at "done"
+            # still leaves the .blend and the output folder as they were.
+            report["times"]["write_back"] = time.perf_counter() - t
+            report["objects_baked"] = list(baked)
+            report["outputs"] = outputs
+            report["times"]["total"] = time.perf_counter() - self._t_start
+            step("done", 1.0)
+
+        with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
-            t = time.perf_counter()
             ws = dict(s)
             if ws["output_dir"]:
-                ws["output_dir"] = bpy.path.abspath(ws["output_dir"])
+                ws["output_dir"] = _output_dir(ws["output_dir"])
             # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
-            outputs = writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws,
-                                          report, progress=step if progress is not None else None)
-            report["times"]["write_back"] = time.perf_counter() - t
-            report["objects_baked"] = list(self.exported.bake_objects)
-            report["outputs"] = outputs
-            step("done", 1.0)
-        report["times"]["total"] = time.perf_counter() - self._t_start
+            writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
+                                progress=step if progress is not None else None, before_commit=before_commit,
+                                black=self._black_objects())
         return _jsonable(report)
+
+
+def _output_dir(path):
+    """The absolute output folder; a '//' path needs a saved .blend to be relative to."""
+    import bpy
+    if path.startswith("//") and not bpy.data.filepath:
+        raise BakeError(f"output_dir '{path}' is relative to the .blend file, which has not been saved yet: "
+                        f"save the file first or give an absolute folder")
+    out = os.path.abspath(bpy.path.abspath(path))
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise BakeError(f"output_dir '{out}' is a file, not a folder")
+    return out
 
 
 def _stepper(progress):
@@ -233,7 +266,14 @@ def begin(scene=None, progress=None, **settings):
               "skipped": []}
     t_start = time.perf_counter()
     step = _stepper(progress)
-    with _object_mode(scene, vl):
+    if s["output_dir"]:
+        _output_dir(s["output_dir"])          # a bad folder is refused before the solve, not after it
+    if bpy.context.scene != scene and bpy.context.window is None and "LIGHTMAP" in s["targets"] \
+            and not s["uv_map"]:
+        raise BakeError(f"the scene '{scene.name}' is not the active scene and there is no window to switch "
+                        f"to it for unwrapping the lightmap UVs: make it the active scene, or name an existing "
+                        f"UV map with the uv_map setting")
+    with _object_mode(scene, vl), export.render_visibility(scene, vl):
         step("export", 0.0)
         t = time.perf_counter()
         ex = export.export_scene(scene, vl, _depsgraph(scene, vl), s["selection_only"])
@@ -243,6 +283,19 @@ def begin(scene=None, progress=None, **settings):
             ex.bake_objects.remove(name)
             ex.skip(name, "not baked: 'Bake' is off in its Object Properties > Penumbra (it still casts and "
                           "reflects light)")
+        if "LIGHTMAP" in s["targets"]:
+            for name in _uv_dropped(scene, vl, ex.bake_objects, s["uv_map"] or writeback.UV_NAME):
+                ex.bake_objects.remove(name)
+                reason = (f"not baked: its modifiers do not keep the UV map '{s['uv_map'] or writeback.UV_NAME}'"
+                          f" (geometry nodes that build new geometry, Remesh, ... drop it); it still casts and "
+                          f"reflects light")
+                ex.skip(name, reason)
+                ex.warnings.append(f"object '{name}': {reason}")
+        used = [v.name for v in scene.view_layers if v.use]
+        if len(used) > 1:
+            # Cycles renders every enabled view layer on its own; one bake can match only one of them.
+            ex.notes.append(f"baked what view layer '{vl.name}' shows; the scene has {len(used)} view layers "
+                            f"({', '.join(used)}) and objects excluded or hidden in '{vl.name}' are left out")
         report["skipped"] = ex.skipped
         report["warnings"] += ex.warnings
         report["notes"] += ex.notes
@@ -264,9 +317,44 @@ def begin(scene=None, progress=None, **settings):
             missing = [n for n in ex.bake_objects if s["uv_map"] not in bpy.data.objects[n].data.uv_layers]
             if missing:
                 raise BakeError(f"UV map '{s['uv_map']}' is missing on: {', '.join(missing)}")
-        if s["output_dir"]:
-            os.makedirs(bpy.path.abspath(s["output_dir"]), exist_ok=True)
     return Job(scene, vl, s, solver_settings, ex, report, t_start)
+
+
+def _uv_dropped(scene, vl, names, uv_name):
+    """The objects whose modifiers would lose the lightmap UV map, found before the solve rather than after
+    it. A UV map the bake would create is added for the check and removed again."""
+    import bpy
+    candidates = [bpy.data.objects[n] for n in names if len(bpy.data.objects[n].modifiers)]
+    if not candidates:
+        return []
+    added, checked = [], []
+    try:
+        for ob in candidates:
+            me = ob.data
+            if uv_name not in me.uv_layers:
+                if len(me.uv_layers) >= 8 or me.library is not None:
+                    continue           # cannot try; the write-back reports it if it comes to that
+                me.uv_layers.new(name=uv_name, do_init=False)
+                me.update_tag()
+                added.append(me.name_full)
+            checked.append(ob)
+        dg = _depsgraph(scene, vl)
+        lost = []
+        for ob in checked:
+            ob_eval = ob.evaluated_get(dg)
+            me = ob_eval.to_mesh()
+            try:
+                if uv_name not in me.uv_layers:
+                    lost.append(ob.name)
+            finally:
+                ob_eval.to_mesh_clear()
+        return lost
+    finally:
+        for mesh_name in added:
+            me = bpy.data.meshes.get(mesh_name)
+            if me is not None and uv_name in me.uv_layers:
+                me.uv_layers.remove(me.uv_layers[uv_name])
+                me.update_tag()
 
 
 def _skipped_text(skipped):
@@ -294,9 +382,12 @@ def preview(scene, on):
 
 
 def clear(scene):
-    """Remove what bakes made in this scene (preview materials, images, attributes, created UV maps)."""
+    """Remove what bakes made in this scene (preview materials, images, attributes, created UV maps), and
+    Penumbra's own images that no object's bake refers to any more (their object was deleted)."""
     _preview.set_preview(scene, False)
-    return [ob.name for ob in scene.objects if ob.type == "MESH" and writeback.remove_bake(ob)]
+    cleared = [ob.name for ob in scene.objects if ob.type == "MESH" and writeback.remove_bake(ob)]
+    writeback.remove_orphan_images()
+    return cleared
 
 
 def summary(report):

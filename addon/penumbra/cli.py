@@ -148,7 +148,15 @@ def main():
         sys.exit(EXIT_USAGE)
     scene = bpy.data.scenes[args.scene] if args.scene else bpy.context.scene
     out = os.path.abspath(args.out)
-    os.makedirs(out, exist_ok=True)
+    if os.path.exists(out) and not os.path.isdir(out):
+        # There is no folder to hold report.json, so the message is all there is.
+        print(f"penumbra: error: --out {args.out} is a file; it must name a folder", file=sys.stderr)
+        sys.exit(EXIT_USAGE)
+    try:
+        os.makedirs(out, exist_ok=True)
+    except OSError as e:
+        print(f"penumbra: error: cannot create the --out folder {out}: {e}", file=sys.stderr)
+        sys.exit(EXIT_USAGE)
     settings = settings_from(getattr(scene, "penumbra", None), args)
     settings["output_dir"] = out
     t0 = time.perf_counter()
@@ -169,6 +177,16 @@ def main():
                        "settings": penumbra._jsonable(settings)}, f, indent=1)
         sys.exit(code)
 
+    save = args.save or os.path.join(out, "baked.blend")
+    if save.lower() != "none":
+        save = os.path.abspath(save)
+        folder = os.path.dirname(save)
+        # Checked before the bake: finding out after a long solve, with the lightmaps already written,
+        # would waste the solve and leave files behind for a run that failed.
+        if os.path.isdir(save) or not os.path.isdir(folder) or not os.access(folder, os.W_OK) or \
+                (os.path.exists(save) and not os.access(save, os.W_OK)):
+            fail(EXIT_USAGE, ValueError(f"--save {args.save}: cannot write {save} (missing or read-only folder, "
+                                        f"or a folder of that name)"))
     try:
         report = penumbra.bake(scene, progress=progress, **settings)
     except (TypeError, penumbra.BakeError, ValueError) as e:
@@ -176,10 +194,12 @@ def main():
         fail(EXIT_SCENE, e)
     except Exception as e:
         fail(EXIT_FAILED, e)
-    save = args.save or os.path.join(out, "baked.blend")
     if save.lower() != "none":
-        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(save), copy=True)
-        report["outputs_blend"] = os.path.abspath(save)
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=save, copy=True)
+        except Exception as e:
+            fail(EXIT_FAILED, RuntimeError(f"baked, but the .blend could not be saved to {save}: {e}"))
+        report["outputs_blend"] = save
     with open(os.path.join(out, "report.json"), "w") as f:
         json.dump(report, f, indent=1)
     for x in report["skipped"]:

@@ -5,9 +5,12 @@ Everything is world space and in Cycles' units (blender-facts §1). Per-element 
 """
 import math
 
+import bpy
 import numpy as np
 
 from .materials import parse_material
+
+PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writeback, which needs bpy data)
 
 EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
@@ -97,8 +100,32 @@ def mesh_polygons(me):
     return co, out, src
 
 
+def _own_materials(original, ob_eval):
+    """The materials the object renders with when the preview is off. While the preview shows a bake, the
+    slots hold emissive preview materials; exporting those would bake the old bake back in (black, albedo
+    0), so they are read from what the preview stored instead, without switching anything."""
+    slots = [s.material for s in ob_eval.material_slots]
+    rec = original.get(PREVIEW_STATE)
+    if rec is None:
+        return slots
+    rec = rec.to_dict() if hasattr(rec, "to_dict") else dict(rec)
+    if rec.get("added_slot"):
+        return [None]
+    stored = rec.get("slots", [])
+    if len(stored) != len(slots):
+        return slots
+    mesh_mats = original.data.materials if original.type == "MESH" else []
+    own = []
+    for i, r in enumerate(stored):
+        if r.get("link") == "OBJECT":
+            own.append(bpy.data.materials.get(r["object_material"]) if r.get("object_material") else None)
+        else:
+            own.append(mesh_mats[i] if i < len(mesh_mats) else None)
+    return own
+
+
 def _material_table(ob_eval, ob_name, cache, result):
-    slots = [s.material for s in ob_eval.material_slots] or [None]
+    slots = _own_materials(ob_eval.original, ob_eval) or [None]
     albedo = np.empty((len(slots), 3), np.float64)
     radiance = np.empty((len(slots), 3), np.float64)
     for i, mat in enumerate(slots):
@@ -180,6 +207,79 @@ def _world_report(scene, result):
         result.skip(w.name, "world lighting is ignored (only meshes and area lights emit)")
 
 
+def rendered_objects(view_layer):
+    """Objects Cycles renders in this view layer, by full name: in a collection that is neither excluded
+    nor disabled in renders, and not disabled in renders themselves. Viewport hiding plays no part."""
+    found = {}
+
+    def walk(lc):
+        if lc.exclude or lc.collection.hide_render:
+            return
+        for ob in lc.collection.objects:
+            if not ob.hide_render:
+                found[ob.name_full] = ob
+        for child in lc.children:
+            walk(child)
+    walk(view_layer.layer_collection)
+    return found
+
+
+class render_visibility:
+    """While the scene is read or written, show what Cycles renders but the viewport hides (the eye and the
+    monitor of objects and collections): the viewport's depsgraph leaves such objects out, and a bake that
+    dropped them would light the scene differently from a render. Every flag is put back on exit."""
+
+    def __init__(self, scene, view_layer):
+        self.vl = view_layer
+        self.changes = []
+
+    def _set(self, target, attr, value):
+        try:
+            old = getattr(target, attr)
+            if old != value:
+                setattr(target, attr, value)
+                self.changes.append((target, attr, old))
+        except (AttributeError, TypeError, RuntimeError):
+            pass           # linked (read-only) data stays as it is
+
+    def __enter__(self):
+        vl = self.vl
+
+        def walk(lc):
+            if lc.exclude or lc.collection.hide_render:
+                return
+            self._set(lc, "hide_viewport", False)
+            self._set(lc.collection, "hide_viewport", False)
+            for child in lc.children:
+                walk(child)
+        try:
+            walk(vl.layer_collection)
+            for ob in rendered_objects(vl).values():
+                self._set(ob, "hide_viewport", False)
+                if ob.hide_get(view_layer=vl):
+                    ob.hide_set(False, view_layer=vl)
+                    self.changes.append((ob, "hide_set", True))
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc):
+        for target, attr, old in reversed(self.changes):
+            try:
+                if attr == "hide_set":
+                    target.hide_set(old, view_layer=self.vl)
+                else:
+                    setattr(target, attr, old)
+            except ReferenceError:
+                pass       # removed meanwhile
+        self.changes.clear()
+        return False
+
+
+NO_SURFACE_TYPES = ("CURVE", "SURFACE", "META", "FONT")
+
+
 def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=None):
     res = Exported()
     verts, polys, refl, emit, flags, oidx = [], [], [], [], [], []
@@ -201,18 +301,34 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         base += len(co_w)
 
     n_lights = 0
+    rendered = rendered_objects(view_layer)
+    not_rendered = set()
+    non_mesh = {}                    # curve, text, ... object name -> type
+    own_surface = set()              # of those, the ones whose evaluated surface was exported
+    seen = set()
     for inst in depsgraph.object_instances:
         ob_eval = inst.object
         original = ob_eval.original
         is_inst = inst.is_instance
         owner = inst.parent.original if is_inst and inst.parent is not None else original
+        if not is_inst:
+            seen.add(original.name_full)
         if not is_inst and not inst.show_self:
             continue
-        if not owner.visible_get(view_layer=view_layer):
+        if owner.name_full not in rendered or (is_inst and original.hide_render):
+            # Cycles does not render it, so it must neither be baked nor cast shadows.
+            if not is_inst and owner.name_full not in not_rendered and \
+                    original.type in ("MESH", "LIGHT") + NO_SURFACE_TYPES:
+                not_rendered.add(owner.name_full)
+                res.skip(owner.name, "not exported: disabled in renders (camera icon of the object or its "
+                                     "collection), as in Cycles")
             continue
         if selection_only and not owner.select_get(view_layer=view_layer):
             continue
-        name = original.name if not is_inst else f"{original.name} (instance via {owner.name})"
+        # Curves, text, surfaces and metaballs evaluate to a mesh that the depsgraph lists as an instance of
+        # the object itself: that is the object's own surface, not an instance.
+        own = is_inst and owner == original and original.type in NO_SURFACE_TYPES
+        name = original.name if not is_inst or own else f"{original.name} (instance via {owner.name})"
         matrix = np.array(inst.matrix_world, np.float64)
 
         if ob_eval.type == "LIGHT":
@@ -223,7 +339,10 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             if abs(light.spread - math.pi) > 1e-4:
                 res.warnings.append(f"area light '{name}': spread {math.degrees(light.spread):.0f} deg is "
                                     f"treated as 180 deg (Lambertian)")
-            if light.energy <= 0:
+            if light.energy < 0:
+                res.skip(name, f"area light with negative power ({light.energy:g} W) is not supported")
+                continue
+            if light.energy == 0:
                 res.skip(name, "area light with zero power")
                 continue
             lpolys, area = area_light_polygon(light, matrix)
@@ -244,14 +363,18 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             continue
 
         if ob_eval.type != "MESH":
-            if ob_eval.type in ("CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME", "GPENCIL"):
-                res.skip(name, f"{ob_eval.type} object is not exported (convert it to a mesh)")
+            if ob_eval.type in NO_SURFACE_TYPES:
+                non_mesh[name] = ob_eval.type
+            elif ob_eval.type in ("CURVES", "POINTCLOUD", "VOLUME", "GPENCIL"):
+                res.skip(name, f"not exported: {ob_eval.type} objects are not supported (Cycles renders it, so "
+                               f"its shadow and reflected light are missing; convert it to a mesh)")
             continue
 
         me = ob_eval.to_mesh()
         try:
             if len(me.polygons) == 0:
-                res.skip(name, "mesh has no faces")
+                if not own:
+                    res.skip(name, "mesh has no faces")
                 continue
             co, rows, src = mesh_polygons(me)
             mat_index = _get(me.polygons, "material_index", len(me.polygons), np.int32)
@@ -270,7 +393,9 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         finally:
             ob_eval.to_mesh_clear()
 
-        if is_inst:
+        if own:
+            own_surface.add(name)
+        elif is_inst:
             res.skip(name, "not baked: instance (its mesh data is shared; it takes part in the solve)")
         elif original.data.library is not None or getattr(original.data, "override_library", None):
             res.skip(name, "not baked: the mesh is linked from a library (it takes part in the solve)")
@@ -281,6 +406,17 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             mesh_owner[original.data.name_full] = original.name
             res.bake_objects.append(original.name)
 
+    for name_full, ob in rendered.items():
+        if name_full not in seen and ob.type in ("MESH", "LIGHT") + NO_SURFACE_TYPES:
+            # render_visibility could not show it (linked, read-only flags), so the depsgraph left it out.
+            res.skip(ob.name, "not exported: Cycles renders it, but it is hidden in the viewport and its "
+                              "visibility cannot be changed for the bake (linked data); show it to include it")
+    for name, kind in non_mesh.items():
+        if name in own_surface:
+            res.skip(name, f"not baked: {kind} object; its surface takes part in the solve (casts and reflects "
+                           f"light) but only mesh objects get a lightmap (convert it to a mesh to bake it)")
+        else:
+            res.skip(name, f"not exported: the {kind} object has no faces (Cycles renders none either)")
     _world_report(scene, res)
     if polys:
         res.vertices = np.ascontiguousarray(np.concatenate(verts), np.float32)

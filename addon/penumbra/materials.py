@@ -114,6 +114,11 @@ def _shader(node, info, depth=0):
         if metallic.is_linked or metallic.default_value > 0 or transmission.is_linked or \
                 transmission.default_value > 0:
             info.notes.append("Principled BSDF with metallic or transmission is treated as its diffuse part")
+        alpha = node.inputs["Alpha"]
+        if alpha.is_linked or alpha.default_value < 1.0:
+            what = "linked to a node" if alpha.is_linked else f"{alpha.default_value:g}"
+            info.warnings.append(f"Principled Alpha ({what}) is treated as opaque: Cycles lets light through "
+                                 f"where alpha is below 1, so this surface's shadow is darker than in a render")
         return base, tuple(c * s for c in ec)
     if t == "EMISSION":
         ec = _color_or_zero(node.inputs["Color"], info, "Emission Color")
@@ -172,6 +177,9 @@ def parse_material(mat):
         info.warnings.append(f"{e}; using 0.8 grey")
         return info
     info.albedo = tuple(float(a) for a in albedo)
+    if any(float(r) < 0 for r in rad):
+        info.warnings.append(f"negative emission ({rad[0]:.4g}, {rad[1]:.4g}, {rad[2]:.4g}) is treated as 0; "
+                             f"the solver cannot take light away")
     info.radiance = tuple(max(float(r), 0.0) for r in rad)
     if not all(math.isfinite(x) for x in info.albedo + info.radiance):
         info.warnings.append("non-finite colour or strength; using 0.8 grey")

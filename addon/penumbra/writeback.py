@@ -3,10 +3,13 @@
 The write-back is a transaction. Every change is recorded with a way to undo it; anything that can fail
 (unwrapping, rasterising, writing files) happens before the commit, which only swaps the new data for what an
 earlier bake made. On any exception the recorded changes are undone in reverse order, so the .blend is left as
-it was before the bake.
+it was before the bake. Files are part of it: lightmaps go to temporary names that replace the old files only
+at the commit, and folders the bake created are removed again.
 """
 import math
 import os
+import uuid
+import zlib
 
 import bpy
 import numpy as np
@@ -15,6 +18,9 @@ UV_NAME = "PenumbraLightmap"
 ATTRIBUTE = "Penumbra"
 IMAGE_PREFIX = "Penumbra_"
 PROP = "penumbra"            # custom property on a baked object: what the last bake made
+# Above this fraction of shared texels a lightmap is called wrong; a few shared texels where islands touch
+# at the packing margin are harmless.
+OVERLAP_WARN = 0.02
 
 
 class WritebackError(RuntimeError):
@@ -182,11 +188,53 @@ def lightmap_inputs(ob_eval, uv_name, matrix):
                                  f"modifiers")
         co_w, tri_v, tri_l = _world_loop_triangles(me, matrix)
         uv = _get(me.uv_layers[uv_name].data, "uv", len(me.loops), np.float32, 2)
+        if np.linalg.det(matrix[:3, :3]) < 0:
+            # A mirroring transform reverses the winding, and the solver takes a triangle's side from its
+            # winding: without this a mirrored object's lightmap would hold the light behind each face.
+            tri_v, tri_l = tri_v[:, [0, 2, 1]], tri_l[:, [0, 2, 1]]
         positions = np.ascontiguousarray(co_w[tri_v], np.float32)
         uvs = np.ascontiguousarray(uv[tri_l], np.float32)
     finally:
         ob_eval.to_mesh_clear()
     return positions, uvs
+
+
+def uv_overlap(uvs, grid=256, chunk=200000):
+    """Fraction of the covered texel centres (on a grid x grid raster) that lie strictly inside more than one
+    UV triangle, from (T, 3, 2) UVs. Overlapping islands share texels, so those faces all get one light."""
+    t = np.asarray(uvs, np.float64) * grid - 0.5        # texel centre j sits at coordinate j
+    a, b, c = t[:, 0], t[:, 1], t[:, 2]
+    det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
+    ok = np.abs(det) > 1e-12
+    lo = np.clip(np.ceil(t.min(axis=1)), 0, grid - 1).astype(np.int64)
+    hi = np.clip(np.floor(t.max(axis=1)), -1, grid - 1).astype(np.int64)
+    nx, ny = np.maximum(hi[:, 0] - lo[:, 0] + 1, 0), np.maximum(hi[:, 1] - lo[:, 1] + 1, 0)
+    n = np.where(ok, nx * ny, 0)
+    counts = np.zeros(grid * grid, np.int64)
+    tri_ids = np.nonzero(n)[0]
+    start = 0
+    while start < len(tri_ids):
+        # Bounded memory: candidate texels of a run of triangles at a time.
+        end = start + 1
+        total = n[tri_ids[start]]
+        while end < len(tri_ids) and total + n[tri_ids[end]] <= chunk:
+            total += n[tri_ids[end]]
+            end += 1
+        ids = tri_ids[start:end]
+        k = np.repeat(ids, n[ids])
+        offs = np.arange(len(k)) - np.repeat(np.cumsum(n[ids]) - n[ids], n[ids])
+        px = lo[k, 0] + offs % nx[k]
+        py = lo[k, 1] + offs // nx[k]
+        d = det[k]
+        l1 = ((px - a[k, 0]) * (c[k, 1] - a[k, 1]) - (c[k, 0] - a[k, 0]) * (py - a[k, 1])) / d
+        l2 = ((b[k, 0] - a[k, 0]) * (py - a[k, 1]) - (px - a[k, 0]) * (b[k, 1] - a[k, 1])) / d
+        # Strictly inside, so a texel centre on an edge two neighbours share is not an overlap.
+        eps = 1e-6
+        inside = (l1 > eps) & (l2 > eps) & (1.0 - l1 - l2 > eps)
+        np.add.at(counts, (py * grid + px)[inside], 1)
+        start = end
+    covered = int((counts > 0).sum())
+    return float((counts > 1).sum()) / covered if covered else 0.0
 
 
 def corner_samples(me, matrix):
@@ -207,25 +255,84 @@ def corner_samples(me, matrix):
 # ---------------------------------------------------------------------------------------------- writing
 
 def _safe_filename(name):
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    """A file name for a data-block name. Names that need no change keep it; any other gets a hash of the
+    exact name, so that "Wall/1" and "Wall_1" cannot write the same file, and a name always maps to the
+    same file from one bake to the next."""
+    safe = "".join(c if c.isascii() and (c.isalnum() or c in "-_.") else "_" for c in name)
+    if safe != name or safe.startswith("."):
+        safe = f"{safe}-{zlib.crc32(name.encode('utf-8')):08x}"
+    return safe
 
 
-def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report):
+def _our_attribute(me, old):
+    """The colour attribute name for this bake: the one the last bake made, else 'Penumbra' unless the user
+    already has an attribute of that name (never replaced), else the first free 'Penumbra.NNN'."""
+    if old.get("attribute") and old["attribute"] in me.attributes:
+        return old["attribute"]
+    name, i = ATTRIBUTE, 0
+    while name in me.attributes:
+        i += 1
+        name = f"{ATTRIBUTE}.{i:03d}"
+    return name
+
+
+def _check_front_light(ob, ob_eval, matrix, solution, report):
+    """Penumbra's surfaces receive and reflect light on their front (normal) side only, where Cycles shades
+    both sides of a face. A mesh whose faces mostly get no light on the front usually has flipped normals;
+    say so, since its bake will be dark where a render is lit."""
+    me = ob_eval.to_mesh()
+    try:
+        n = len(me.polygons)
+        if n == 0:
+            return
+        centre = _get(me.polygons, "center", n, np.float32, 3).astype(np.float64)
+        normal = _get(me.polygons, "normal", n, np.float32, 3).astype(np.float64)
+        area = _get(me.polygons, "area", n, np.float32).astype(np.float64)
+    finally:
+        ob_eval.to_mesh_clear()
+    step = max(1, n // 20000)             # a sample is enough for a warning
+    centre, normal, area = centre[::step], normal[::step], area[::step]
+    cw = centre @ matrix[:3, :3].T + matrix[:3, 3]
+    nw = normal @ np.linalg.inv(matrix[:3, :3])
+    nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)
+    rgb = np.asarray(solution.radiance(np.ascontiguousarray(cw, np.float32),
+                                       np.ascontiguousarray(nw, np.float32)))
+    dark = area[rgb.max(axis=1) <= 0].sum() / max(area.sum(), 1e-30)
+    if dark > 0.5:
+        report["warnings"].append(
+            f"object '{ob.name}': {100 * dark:.0f} % of its surface receives no light on its front side. "
+            f"Penumbra lights faces on the side their normals point to; Cycles lights both sides, so a render "
+            f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals)")
+
+
+def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report, files, reflects=True):
     """Rasterise and store one object's bake. Nothing here replaces earlier results: that is the commit."""
     targets = settings["targets"]
     res, margin = settings["resolution"], settings["margin"]
     ob_eval = ob.evaluated_get(dg)
     matrix = np.array(ob_eval.matrix_world, np.float64)
+    if reflects:
+        # A black object reflects nothing whatever it receives, so its zero radiance says nothing of sides.
+        _check_front_light(ob, ob_eval, matrix, solution, report)
     old = baked_state(ob)
     record = {"uv_map": uv_name, "uv_created": bool(uv_created or old.get("uv_created", False)) and
               uv_name == UV_NAME}
     outputs = {}
 
+    shared = 0.0
     if "LIGHTMAP" in targets:
         positions, uvs = lightmap_inputs(ob_eval, uv_name, matrix)
         if len(uvs) and (uvs.min() < -1e-4 or uvs.max() > 1 + 1e-4):
             report["warnings"].append(f"object '{ob.name}': UV map '{uv_name}' leaves the [0, 1] square; "
                                       f"texels outside it are lost")
+        shared = uv_overlap(uvs, min(res, 256))
+        if shared > OVERLAP_WARN:
+            mods = [m.name for m in ob.modifiers if m.type in ("ARRAY", "MIRROR") and m.show_render]
+            why = (f" (its modifier(s) {', '.join(mods)} copy faces onto the same UVs)" if mods else "")
+            report["warnings"].append(
+                f"object '{ob.name}': {100 * shared:.0f} % of its lightmap texels are shared by overlapping "
+                f"faces of UV map '{uv_name}'{why}; those faces show one light in the lightmap, which is wrong "
+                f"for all but one of them: apply the modifiers, or give every face its own UV space")
         px = solution.bake_lightmap(positions, uvs, res, res, margin)
         px = np.ascontiguousarray(px, np.float32)
         if px.shape != (res, res, 4):
@@ -235,6 +342,8 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             raise WritebackError(f"object '{ob.name}': the solver returned non-finite lightmap texels")
         final = IMAGE_PREFIX + ob.name
         old_img = bpy.data.images.get(old.get("image", "")) if old.get("image") else None
+        if old_img is not None and not old_img.get("penumbra"):
+            old_img = None            # the name was reused by an image that is not ours: leave it alone
         img = bpy.data.images.new(final if old_img is None else final + ".penumbra-new", res, res,
                                   alpha=False, float_buffer=True)
         img_name = img.name
@@ -247,7 +356,13 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
         img["penumbra"] = True
         if settings.get("output_dir"):
             path = os.path.join(settings["output_dir"], _safe_filename(final) + ".exr")
-            native.write_exr(path, px)
+            if path in files.values():
+                raise WritebackError(f"object '{ob.name}': two objects would write the lightmap file {path}")
+            # The writer picks the format by the extension, so the temporary name ends in .exr too.
+            tmp = f"{path[:-4]}.{uuid.uuid4().hex[:8]}.tmp.exr"
+            files[tmp] = path
+            tx.on_rollback(lambda tmp=tmp: os.path.exists(tmp) and os.remove(tmp))
+            native.write_exr(tmp, px)
             outputs["exr"] = path
 
         def swap(img_name=img_name, final=final, old_name=old_img.name if old_img else None):
@@ -256,8 +371,11 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
                 o = bpy.data.images[old_name]
                 o.user_remap(new)
                 bpy.data.images.remove(o)
-            if new.name != final:
-                new.name = final
+            # Renaming onto a taken name renames the other data-block in Blender 3.4; a user's image keeps
+            # its name and ours keeps the suffixed one.
+            want = final if final not in bpy.data.images else old_name
+            if want and new.name != want and want not in bpy.data.images:
+                new.name = want
             # Blender may have had to pick another name (an unrelated image already called `final`).
             record["image"] = outputs["image"] = new.name
         tx.on_commit(swap)
@@ -270,9 +388,14 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             if len(me_eval.loops) == len(base.loops) and len(me_eval.polygons) == len(base.polygons):
                 pts, nrm = corner_samples(me_eval, matrix)
             else:
+                # Not "the lightmap follows the modified surface" when the modifier's copies share texels:
+                # then neither target is right for the copies, and the overlap warning says so.
+                follows = "" if shared > OVERLAP_WARN or "LIGHTMAP" not in targets else \
+                    " (the lightmap follows the modified surface)"
                 report["warnings"].append(
-                    f"object '{ob.name}': modifiers change the topology, so the '{ATTRIBUTE}' attribute is "
-                    f"computed on the base mesh (the lightmap follows the modified surface)")
+                    f"object '{ob.name}': modifiers change the topology, so the colour attribute holds the "
+                    f"light of the mesh before its modifiers, and the faces they add show that light too"
+                    f"{follows}")
                 pts, nrm = corner_samples(base, matrix)
         finally:
             ob_eval.to_mesh_clear()
@@ -285,8 +408,9 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
         old_active = attrs.active_color.name if attrs.active_color else None
         old_render = attrs.keys()[attrs.render_color_index] if 0 <= attrs.render_color_index < len(attrs) \
             else None
-        had_old = ATTRIBUTE in base.attributes
-        new_name = ATTRIBUTE + ".penumbra-new" if had_old else ATTRIBUTE
+        attr_name = _our_attribute(base, old)
+        had_old = attr_name in base.attributes
+        new_name = attr_name + ".penumbra-new" if had_old else attr_name
         ca = attrs.new(name=new_name, type="FLOAT_COLOR", domain="CORNER")
         ca_name, mesh_name = ca.name, base.name_full
 
@@ -298,11 +422,11 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
         ca.data.foreach_set("color", rgba.ravel())
 
         def swap_attr(ca_name=ca_name, mesh_name=mesh_name, had_old=had_old, old_active=old_active,
-                      old_render=old_render):
+                      old_render=old_render, attr_name=attr_name):
             m = bpy.data.meshes[mesh_name]
-            if had_old and ca_name != ATTRIBUTE:
-                m.attributes.remove(m.attributes[ATTRIBUTE])
-                m.attributes[ca_name].name = ATTRIBUTE
+            if had_old and ca_name != attr_name:
+                m.attributes.remove(m.attributes[attr_name])
+                m.attributes[ca_name].name = attr_name
             a = m.color_attributes
             keys = a.keys()
             # Keep the user's active and render color attributes; the preview names ours explicitly.
@@ -311,8 +435,8 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             if old_render and old_render in keys:
                 a.render_color_index = keys.index(old_render)
         tx.on_commit(swap_attr)
-        record["attribute"] = ATTRIBUTE
-        outputs["attribute"] = ATTRIBUTE
+        record["attribute"] = attr_name
+        outputs["attribute"] = attr_name
 
     old_prop = ob.get(PROP)
     old_prop = old_prop.to_dict() if hasattr(old_prop, "to_dict") else old_prop
@@ -338,11 +462,71 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
     return outputs
 
 
-def write_all(scene, view_layer, object_names, solution, native, settings, report, progress=None):
-    """Unwrap, rasterise and store every baked object; all or nothing."""
+def _uv_survives(ob, dg, uv_name):
+    ob_eval = ob.evaluated_get(dg)
+    me = ob_eval.to_mesh()
+    try:
+        return uv_name in me.uv_layers
+    finally:
+        ob_eval.to_mesh_clear()
+
+
+class _active_scene:
+    """Make `scene` the window's scene meanwhile: the unwrap runs edit-mode operators, whose polls look at
+    the window's scene, so baking a scene that is not the active one would fail only after the solve."""
+
+    def __init__(self, scene, view_layer):
+        self.scene, self.vl, self.saved = scene, view_layer, None
+
+    def __enter__(self):
+        win = bpy.context.window
+        if win is not None and win.scene != self.scene:
+            self.saved = (win.scene, win.view_layer)
+            win.scene = self.scene
+            win.view_layer = self.vl
+        return self
+
+    def __exit__(self, *exc):
+        if self.saved is not None:
+            win = bpy.context.window
+            scene, vl = self.saved
+            win.scene = scene
+            win.view_layer = vl
+        return False
+
+
+def write_all(scene, view_layer, object_names, solution, native, settings, report, progress=None,
+              before_commit=None, black=()):
+    """`black`: names of objects whose every face has albedo 0 (no side check for them)."""
+    with _active_scene(scene, view_layer):
+        return _write_all(scene, view_layer, object_names, solution, native, settings, report, progress,
+                          before_commit, frozenset(black))
+
+
+def _write_all(scene, view_layer, object_names, solution, native, settings, report, progress, before_commit,
+               black):
+    """Unwrap, rasterise and store every baked object; all or nothing, on disk too: lightmap files are
+    written under temporary names and moved into place only at the commit. `before_commit(outputs)` runs
+    last before the commit; whatever it raises rolls everything back."""
     tx = Transaction()
     outputs = {}
+    files = {}                     # temporary file -> final path
     try:
+        out_dir = settings.get("output_dir")
+        if out_dir:
+            missing = []
+            d = os.path.abspath(out_dir)
+            while not os.path.isdir(d):
+                missing.append(d)
+                parent = os.path.dirname(d)
+                if parent == d:
+                    break
+                d = parent
+            os.makedirs(out_dir, exist_ok=True)
+            # Undo the folders this bake created, deepest first (they are empty again after the temporary
+            # files went).
+            for d in reversed(missing):
+                tx.on_rollback(lambda d=d: os.path.isdir(d) and not os.listdir(d) and os.rmdir(d))
         uv = {}
         for name in object_names:
             ob = bpy.data.objects[name]
@@ -352,15 +536,40 @@ def write_all(scene, view_layer, object_names, solution, native, settings, repor
         else:
             view_layer.update()
             dg = view_layer.depsgraph
-        for i, name in enumerate(object_names):
+        baked = []
+        for name in object_names:
+            ob = bpy.data.objects[name]
+            if "LIGHTMAP" in settings["targets"] and not _uv_survives(ob, dg, uv[name][0]):
+                # One object's modifiers (geometry nodes, typically) dropping the UV map must not sink the
+                # whole bake: that object gets no lightmap and the report says why.
+                reason = (f"not baked: its modifiers do not keep the UV map '{uv[name][0]}' (geometry nodes "
+                          f"that build new geometry drop it); it still casts and reflects light")
+                report["skipped"].append({"name": name, "reason": reason})
+                report["warnings"].append(f"object '{name}': {reason}")
+                if uv[name][1]:
+                    mesh = ob.data
+                    mesh.uv_layers.remove(mesh.uv_layers[uv[name][0]])
+                continue
+            baked.append(name)
+        for i, name in enumerate(baked):
             if progress is not None:
-                progress("write-back", i / max(len(object_names), 1))
+                progress("write-back", i / max(len(baked), 1))
             ob = bpy.data.objects[name]
             outputs[name] = write_object(ob, solution, native, dg, uv[name][0], uv[name][1], settings, tx,
-                                         report)
+                                         report, files, reflects=name not in black)
+        if before_commit is not None:
+            before_commit(baked, outputs)
+        for tmp, path in files.items():
+            os.replace(tmp, path)
         tx.commit()
     except BaseException:
         errors = tx.rollback()
+        for tmp in files:
+            if os.path.exists(tmp):
+                try:
+                    os.remove(tmp)
+                except OSError as e:
+                    errors.append(str(e))
         if errors:
             report["warnings"].append("rollback incomplete: " + "; ".join(errors))
         raise
@@ -382,3 +591,15 @@ def remove_bake(ob):
         me.uv_layers.remove(me.uv_layers[state["uv_map"]])
     del ob[PROP]
     return True
+
+
+def remove_orphan_images():
+    """Remove the lightmap images Penumbra made whose object no longer records them (deleted objects leave
+    them behind, packed and fake-used). A user's image is never marked, so it is never removed."""
+    kept = {baked_state(ob).get("image") for ob in bpy.data.objects}
+    removed = []
+    for img in list(bpy.data.images):
+        if img.get("penumbra") and img.name not in kept and img.library is None:
+            removed.append(img.name)
+            bpy.data.images.remove(img)
+    return removed

@@ -1,0 +1,419 @@
+"""What ordinary artists' files hold (issue 15): the preview left on, mirrored and modified objects, hidden
+objects, names that collide, failures at the last moment. Each test failed before its fix."""
+import json
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+import cornell_box
+import helpers
+
+FAST = {"resolution": 32, "epsilon": 0.004}
+
+
+def _lit_floor(name="Floor", scale=(1, 1, 1), flip=False, cuts=4, energy=100.0):
+    """A 2 m grey floor under a 1 m square area light 1 m up that shines down onto it."""
+    floor = helpers.quad_object(name, 1.0, 1.0, material=helpers.diffuse_material(name + "Mat", (0.5,) * 3),
+                                flip=flip, cuts=cuts)
+    floor.scale = scale
+    helpers.area_light("Lamp", "SQUARE", 1.0, energy=energy, location=(0, 0, 1))
+    return floor
+
+
+def _covered_mean(ob, img_name):
+    px = helpers.image_pixels(bpy.data.images[img_name])
+    mask, _ = helpers.texel_world_positions(ob, "PenumbraLightmap", px.shape[1], px.shape[0])
+    return float(px[..., :3][mask].mean())
+
+
+def _dir_state(path):
+    if not os.path.isdir(path):
+        return None
+    return {n: open(os.path.join(path, n), "rb").read() for n in sorted(os.listdir(path))}
+
+
+# ------------------------------------------------------------------------------------------- 1. preview
+
+def test_rebake_with_the_preview_on_gives_the_same_lightmaps(empty_scene, penumbra):
+    cornell_box.build()
+    r0 = penumbra.bake(empty_scene, **FAST)
+    # The black, emitting lamp reflects nothing: that is not a face lit from behind.
+    assert not [w for w in r0["warnings"] if "front side" in w], r0["warnings"]
+    first = {n: helpers.image_pixels(bpy.data.images["Penumbra_" + n]).copy() for n in ("Floor", "BackWall")}
+    assert penumbra.preview(empty_scene, True)
+    report = penumbra.bake(empty_scene, **FAST)
+    for n, px in first.items():
+        again = helpers.image_pixels(bpy.data.images["Penumbra_" + n])
+        assert again[..., :3].max() > 0.05, f"{n} baked black with the preview on"
+        np.testing.assert_allclose(again, px, rtol=1e-5, atol=1e-7)
+    # The Bake button's path (the panel's settings): the same with the preview on as off.
+    empty_scene.penumbra.resolution, empty_scene.penumbra.epsilon = FAST["resolution"], FAST["epsilon"]
+    penumbra.preview(empty_scene, False)
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    ref = helpers.image_pixels(bpy.data.images["Penumbra_Floor"]).copy()
+    penumbra.preview(empty_scene, True)
+    assert bpy.ops.penumbra.bake() == {"FINISHED"}
+    np.testing.assert_allclose(helpers.image_pixels(bpy.data.images["Penumbra_Floor"]), ref, rtol=1e-5, atol=1e-7)
+    # The preview stays on, now showing the new bake, and switches off to the user's own materials.
+    floor = bpy.data.objects["Floor"]
+    assert floor.get("penumbra_preview") is not None
+    assert not [w for w in report["warnings"] + report["notes"] if "Penumbra Preview" in w]
+    penumbra.preview(empty_scene, False)
+    assert floor.material_slots[0].material.name == "White"
+
+
+# ------------------------------------------------------------------------------------------- 2. the last stage
+
+@pytest.mark.parametrize("stage", ["write-back", "done"])
+@pytest.mark.parametrize("how", ["cancel", "error"])
+def test_cancel_or_error_at_a_late_stage_changes_nothing(empty_scene, penumbra, tmp_path, stage, how):
+    cornell_box.build()
+    out = str(tmp_path / "lm")
+    penumbra.bake(empty_scene, output_dir=out, **FAST)
+    before, files = helpers.blend_state(), _dir_state(out)
+    assert files and all(n.endswith(".exr") for n in files)
+
+    def progress(s, frac):
+        if s == stage:
+            if how == "cancel":
+                return False
+            raise RuntimeError(f"injected failure at {s}")
+        return True
+    fresh = str(tmp_path / "new" / "lm")
+    for folder in (out, fresh):
+        with pytest.raises(penumbra.Cancelled if how == "cancel" else RuntimeError):
+            penumbra.bake(empty_scene, progress=progress, output_dir=folder, **{**FAST, "resolution": 40})
+    helpers.assert_same_state(before, helpers.blend_state())
+    assert _dir_state(out) == files, "the earlier bake's files changed"
+    assert not (tmp_path / "new").exists(), "a failed bake left a folder behind"
+
+
+# ------------------------------------------------------------------------------------------- 3. mirrors, sides
+
+def test_mirrored_object_gets_its_front_light(empty_scene, penumbra):
+    floor = _lit_floor()
+    penumbra.bake(empty_scene, **FAST)
+    plain = _covered_mean(floor, "Penumbra_Floor")
+    assert plain > 0.01
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    floor = _lit_floor(scale=(-1, 1, 1))
+    report = penumbra.bake(scene, **FAST)
+    mirrored = _covered_mean(floor, "Penumbra_Floor")
+    # The floor is symmetric, so mirroring it must not change what it receives.
+    assert mirrored == pytest.approx(plain, rel=0.02)
+    ca = np.empty(len(floor.data.loops) * 4, np.float32)
+    floor.data.color_attributes["Penumbra"].data.foreach_get("color", ca)
+    assert ca.reshape(-1, 4)[:, :3].mean() == pytest.approx(plain, rel=0.15)
+    assert not [w for w in report["warnings"] if "front side" in w]
+
+
+def test_face_lit_only_from_behind_is_reported(empty_scene, penumbra):
+    _lit_floor(flip=True)           # normals point down, away from the lamp
+    report = penumbra.bake(empty_scene, **FAST)
+    text = [w for w in report["warnings"] if "Floor" in w and "front side" in w]
+    assert text and "Cycles" in text[0], report["warnings"]
+    # Penumbra lights the front side only; the flipped floor's lightmap is dark, and the report says why.
+    assert helpers.image_pixels(bpy.data.images["Penumbra_Floor"])[..., :3].max() < 1e-6
+
+
+# ------------------------------------------------------------------------------------------- 4. UV overlap
+
+def test_array_copies_sharing_lightmap_texels_are_warned(empty_scene, penumbra):
+    floor = _lit_floor()
+    tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=1)
+    tile.location.x = -0.6
+    arr = tile.modifiers.new("Array", "ARRAY")
+    arr.count = 4
+    arr.relative_offset_displace = (3.0, 0, 0)
+    report = penumbra.bake(empty_scene, **FAST)
+    tile_w = [w for w in report["warnings"] if "'Tile'" in w and "shared" in w]
+    assert len(tile_w) == 1 and "Array" in tile_w[0] and "100 %" in tile_w[0], report["warnings"]
+    assert not [w for w in report["warnings"] if "'Floor'" in w and "shared" in w]
+    # The attribute's warning no longer claims the lightmap is right for the copies.
+    topo = [w for w in report["warnings"] if "'Tile'" in w and "topology" in w]
+    assert len(topo) == 1 and "lightmap follows" not in topo[0]
+    assert "Tile" in report["objects_baked"] and floor.name in report["objects_baked"]
+
+
+# ------------------------------------------------------------------------------------------- 5. names
+
+def test_names_that_sanitise_alike_write_different_files(empty_scene, penumbra, tmp_path):
+    _lit_floor()
+    for name, y in (("Wall/1", 0.5), ("Wall_1", -0.5)):
+        ob = helpers.quad_object(name, 0.2, 0.2, z=0.2)
+        ob.location.y = y
+    report = penumbra.bake(empty_scene, output_dir=str(tmp_path), **FAST)
+    a, b = report["outputs"]["Wall/1"]["exr"], report["outputs"]["Wall_1"]["exr"]
+    assert a != b and os.path.isfile(a) and os.path.isfile(b)
+    assert os.path.basename(b) == "Penumbra_Wall_1.exr"           # a plain name keeps its plain file name
+    # Stable: the same name gets the same file again.
+    again = penumbra.bake(empty_scene, output_dir=str(tmp_path), **FAST)
+    assert again["outputs"]["Wall/1"]["exr"] == a
+    assert sorted(os.listdir(tmp_path)) == sorted(os.path.basename(p) for p in (a, b, again["outputs"]["Floor"]["exr"]))
+
+
+def test_users_own_attribute_named_penumbra_is_kept(empty_scene, penumbra):
+    floor = _lit_floor()
+    mine = floor.data.color_attributes.new("Penumbra", "FLOAT_COLOR", "POINT")
+    mine.data.foreach_set("color", np.full(len(floor.data.vertices) * 4, 0.25, np.float32))
+    report = penumbra.bake(empty_scene, **FAST)
+    ours = report["outputs"]["Floor"]["attribute"]
+    assert ours != "Penumbra"
+    me = floor.data
+    assert me.attributes["Penumbra"].domain == "POINT"
+    vals = np.empty(len(me.vertices) * 4, np.float32)
+    me.color_attributes["Penumbra"].data.foreach_get("color", vals)
+    assert np.all(vals == 0.25)
+    penumbra.bake(empty_scene, **FAST)                      # a re-bake replaces ours, not the user's
+    assert [a.name for a in me.attributes if a.name.startswith("Penumbra")] == ["Penumbra", ours]
+    penumbra.clear(empty_scene)
+    assert "Penumbra" in me.attributes and ours not in me.attributes
+    me.color_attributes["Penumbra"].data.foreach_get("color", vals)
+    assert np.all(vals == 0.25)
+
+
+def test_users_own_image_named_like_a_lightmap_is_kept(empty_scene, penumbra):
+    _lit_floor()
+    mine = bpy.data.images.new("Penumbra_Floor", 4, 4)
+    mine.pixels.foreach_set(np.full(64, 0.5, np.float32))
+    report = penumbra.bake(empty_scene, **FAST)
+    assert bpy.data.images["Penumbra_Floor"] == mine and tuple(mine.size) == (4, 4)
+    ours = report["outputs"]["Floor"]["image"]
+    assert ours != "Penumbra_Floor" and tuple(bpy.data.images[ours].size) == (32, 32)
+    report = penumbra.bake(empty_scene, **FAST)
+    assert report["outputs"]["Floor"]["image"] == ours and bpy.data.images["Penumbra_Floor"] == mine
+    penumbra.clear(empty_scene)
+    assert "Penumbra_Floor" in bpy.data.images and ours not in bpy.data.images
+
+
+def test_relative_output_dir_in_an_unsaved_file_is_refused(empty_scene, penumbra, tmp_path, monkeypatch):
+    _lit_floor()
+    monkeypatch.chdir(tmp_path)
+    before = helpers.blend_state()
+    with pytest.raises(penumbra.BakeError, match="not been saved"):
+        penumbra.bake(empty_scene, output_dir="//lm", **FAST)
+    assert os.listdir(tmp_path) == []
+    helpers.assert_same_state(before, helpers.blend_state())
+
+
+# ------------------------------------------------------------------------------------------- 6. what Cycles renders
+
+def _occluder(name):
+    """A 0.6 m card between the lamp and the floor."""
+    return helpers.quad_object(name, 0.3, 0.3, z=0.5, material=helpers.diffuse_material(name + "Mat", (0.5,) * 3))
+
+
+def test_viewport_hidden_objects_are_baked_and_cast(empty_scene, penumbra):
+    floor = _lit_floor()
+    penumbra.bake(empty_scene, **FAST)
+    open_mean = _covered_mean(floor, "Penumbra_Floor")
+    eye = _occluder("EyeHidden")
+    eye.hide_set(True)
+    monitor = _occluder("MonitorHidden")
+    monitor.hide_viewport = True
+    monitor.location.z = 0.4
+    coll = bpy.data.collections.new("HiddenColl")
+    empty_scene.collection.children.link(coll)
+    in_coll = _occluder("InHiddenCollection")
+    empty_scene.collection.objects.unlink(in_coll)
+    coll.objects.link(in_coll)
+    in_coll.location.z = 0.6
+    bpy.context.view_layer.layer_collection.children["HiddenColl"].hide_viewport = True
+    floor.select_set(True)
+    selected = {o.name: o.select_get() for o in bpy.data.objects}
+    report = penumbra.bake(empty_scene, **FAST)
+    assert {o.name: o.select_get() for o in bpy.data.objects} == selected
+    for n in ("EyeHidden", "MonitorHidden", "InHiddenCollection"):
+        assert n in report["objects_baked"], report["skipped"]
+    assert _covered_mean(floor, "Penumbra_Floor") < 0.9 * open_mean         # their shadow is there
+    # The viewport flags are as the user left them.
+    assert eye.hide_get() and monitor.hide_viewport
+    assert bpy.context.view_layer.layer_collection.children["HiddenColl"].hide_viewport
+
+
+def test_render_hidden_object_is_neither_baked_nor_casts(empty_scene, penumbra):
+    floor = _lit_floor()
+    penumbra.bake(empty_scene, **FAST)
+    open_px = helpers.image_pixels(bpy.data.images["Penumbra_Floor"]).copy()
+    card = _occluder("NotRendered")
+    card.hide_render = True
+    empty = bpy.data.objects.new("HelperEmpty", None)      # nothing to render either way: not reported
+    empty.hide_render = True
+    empty_scene.collection.objects.link(empty)
+    report = penumbra.bake(empty_scene, **FAST)
+    assert "HelperEmpty" not in [x["name"] for x in report["skipped"]]
+    assert "NotRendered" not in report["objects_baked"]
+    reasons = {x["name"]: x["reason"] for x in report["skipped"]}
+    assert "renders" in reasons["NotRendered"]
+    np.testing.assert_allclose(helpers.image_pixels(bpy.data.images["Penumbra_Floor"]), open_px,
+                               rtol=1e-4, atol=1e-6)
+
+
+def test_curves_text_and_metaballs_are_reported_as_exported(empty_scene, penumbra):
+    _lit_floor()
+    cu = bpy.data.curves.new("C", "CURVE")
+    cu.extrude = 0.1
+    sp = cu.splines.new("POLY")
+    sp.points.add(1)
+    sp.points[1].co = (0.5, 0, 0, 1)
+    flat = bpy.data.curves.new("F", "CURVE")
+    sp = flat.splines.new("POLY")
+    sp.points.add(1)
+    for name, data in (("Ribbon", cu), ("Label", bpy.data.curves.new("T", "FONT")), ("Blob", bpy.data.metaballs.new("M")),
+                       ("Wire", flat)):
+        if name == "Blob":
+            data.elements.new()                   # radius 2; a smaller element's field has no surface
+        ob = bpy.data.objects.new(name, data)
+        ob.location.z = 0.3
+        ob.scale = (0.1,) * 3
+        empty_scene.collection.objects.link(ob)
+    report = penumbra.bake(empty_scene, **FAST)
+    reasons = {x["name"]: x["reason"] for x in report["skipped"]}
+    for name in ("Ribbon", "Label", "Blob"):
+        assert "takes part in the solve" in reasons[name], reasons
+    assert report["export"]["objects"] == 5          # the floor, the lamp and the three surfaces
+    assert "no faces" in reasons["Wire"]
+    assert not [x for x in report["skipped"] if "instance via" in x["name"]]
+    assert len(report["skipped"]) == 4
+
+
+def test_alpha_cards_negative_emission_and_negative_lights_are_reported(empty_scene, penumbra):
+    _lit_floor()
+    card = _occluder("Leaf")
+    mat = bpy.data.materials.new("LeafMat")
+    mat.use_nodes = True
+    mat.node_tree.nodes["Principled BSDF"].inputs["Alpha"].default_value = 0.0
+    card.data.materials[0] = mat
+    sink = _occluder("Sink")
+    sink.location.x = 0.8
+    sink.data.materials[0] = helpers.emission_material("Negative", (1, 1, 1), -2.0)
+    helpers.area_light("Dark", "SQUARE", 0.5, energy=-100.0, location=(0.5, 0.5, 1))
+    report = penumbra.bake(empty_scene, **FAST)
+    w = "\n".join(report["warnings"])
+    assert "'Leaf'" in w and "Alpha" in w
+    assert "'Sink'" in w and "negative emission" in w
+    reasons = {x["name"]: x["reason"] for x in report["skipped"]}
+    assert "negative power (-100 W)" in reasons["Dark"] and "zero" not in reasons["Dark"]
+
+
+# ------------------------------------------------------------------------------------------- 7. late errors
+
+def test_bake_of_a_scene_that_is_not_the_active_one(empty_scene, penumbra):
+    other = bpy.data.scenes.new("Other")
+    window = bpy.context.window
+    window.scene = other
+    cornell_box.build()
+    window.scene = empty_scene
+    report = penumbra.bake(other, **FAST)
+    assert "Floor" in report["objects_baked"]
+    assert bpy.context.scene == empty_scene
+    assert bpy.data.objects["Floor"].get("penumbra") is not None
+    assert "PenumbraLightmap" in bpy.data.objects["Floor"].data.uv_layers
+
+
+def _geometry_nodes_cube(ob):
+    ng = bpy.data.node_groups.new("MakeCube", "GeometryNodeTree")
+    ng.outputs.new("NodeSocketGeometry", "Geometry")
+    out = ng.nodes.new("NodeGroupOutput")
+    cube = ng.nodes.new("GeometryNodeMeshCube")
+    ng.links.new(cube.outputs["Mesh"], out.inputs[0])
+    mod = ob.modifiers.new("GN", "NODES")
+    mod.node_group = ng
+
+
+def test_geometry_nodes_object_without_its_uv_map_is_skipped_not_fatal(empty_scene, penumbra):
+    floor = _lit_floor()
+    box = helpers.quad_object("GNBox", 0.1, 0.1, z=0.4)
+    _geometry_nodes_cube(box)
+    box.location.z = 0.4
+    before = helpers.blend_state()
+    job = penumbra.begin(empty_scene, **FAST)
+    # Found before the solve, and the check leaves the mesh as it was.
+    assert "GNBox" not in job.exported.bake_objects and "Floor" in job.exported.bake_objects
+    assert any(x["name"] == "GNBox" and "UV map" in x["reason"] for x in job.report["skipped"])
+    helpers.assert_same_state(before, helpers.blend_state())
+    report = penumbra.bake(empty_scene, **FAST)
+    assert "Floor" in report["objects_baked"] and "GNBox" not in report["objects_baked"]
+    reasons = {x["name"]: x["reason"] for x in report["skipped"]}
+    assert "UV map" in reasons["GNBox"]
+    # The skipped object has nothing of a bake on it (no state, no UV map left behind).
+    assert box.get("penumbra") is None and "PenumbraLightmap" not in box.data.uv_layers
+    assert floor.get("penumbra") is not None
+
+
+def test_settings_of_the_wrong_type_are_refused(empty_scene, penumbra):
+    _lit_floor()
+    for bad in ({"selection_only": "yes"}, {"selection_only": 1}, {"uv_map": 3}, {"output_dir": b"x"}):
+        with pytest.raises(TypeError):
+            penumbra.bake(empty_scene, **FAST, **bad)
+
+
+def test_build_info_is_json(penumbra):
+    with open(os.path.join(os.path.dirname(penumbra.__file__), "_build_info.json")) as f:
+        info = json.load(f)
+    assert info["python"].count(".") == 1
+
+
+# ------------------------------------------------------------------------------------------- 8. orphans
+
+def test_clear_removes_the_images_of_deleted_objects(empty_scene, penumbra):
+    cornell_box.build()
+    penumbra.bake(empty_scene, **FAST)
+    mine = bpy.data.images.new("Penumbra_Mine", 4, 4)       # a user's image with a name like ours
+    mine.use_fake_user = True
+    bpy.data.objects.remove(bpy.data.objects["ShortBlock"])
+    assert "Penumbra_ShortBlock" in bpy.data.images
+    penumbra.clear(empty_scene)
+    assert "Penumbra_ShortBlock" not in bpy.data.images
+    assert "Penumbra_Mine" in bpy.data.images
+    assert not [i for i in bpy.data.images if i.get("penumbra")]
+
+
+def test_the_view_layer_baked_is_named_when_there_are_several(empty_scene, penumbra):
+    _lit_floor()
+    coll = bpy.data.collections.new("Props")
+    empty_scene.collection.children.link(coll)
+    card = _occluder("Prop")
+    empty_scene.collection.objects.unlink(card)
+    coll.objects.link(card)
+    other = empty_scene.view_layers.new("NoProps")
+    other.layer_collection.children["Props"].exclude = True
+    report = penumbra.bake(empty_scene, **FAST)
+    assert "Prop" in report["objects_baked"]
+    notes = [n for n in report["notes"] if "view layer" in n]
+    assert len(notes) == 1 and f"'{bpy.context.view_layer.name}'" in notes[0] and "NoProps" in notes[0]
+
+
+# ------------------------------------------------------------------------------------------- linked data
+
+def test_linked_objects_take_part_even_when_hidden_in_the_viewport(empty_scene, penumbra, tmp_path):
+    """Library data is read-only: a linked mesh casts but is not baked; one hidden in the viewport (its
+    visibility flags stay editable in the linking file) is exported like a local one, and stays hidden."""
+    lib = str(tmp_path / "lib.blend")
+    _occluder("LinkedCard")
+    hidden = _occluder("LinkedHidden")
+    hidden.location.x = 0.8
+    hidden.hide_viewport = True
+    bpy.ops.wm.save_as_mainfile(filepath=lib)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    floor = _lit_floor()
+    with bpy.data.libraries.load(lib, link=True) as (src, dst):
+        dst.objects = ["LinkedCard", "LinkedHidden"]
+    for ob in dst.objects:
+        scene.collection.objects.link(ob)
+    before = helpers.blend_state()
+    report = penumbra.bake(scene, **FAST)
+    reasons = {x["name"]: x["reason"] for x in report["skipped"]}
+    assert "linked from a library" in reasons["LinkedCard"]
+    assert "linked from a library" in reasons["LinkedHidden"]
+    assert report["objects_baked"] == ["Floor"]
+    assert report["export"]["objects"] == 4            # floor, lamp and both linked cards
+    after = helpers.blend_state()
+    for key in ("images", "meshes"):
+        for name in ("LinkedCard", "LinkedHidden"):
+            assert after[key].get(name) == before[key].get(name)
+    assert bpy.data.objects["LinkedHidden"].hide_viewport
