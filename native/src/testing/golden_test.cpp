@@ -99,7 +99,9 @@ void expectGolden(const TestScene& t, const Settings& s, const Golden& want) {
     for (const auto& kv : sol->report().counts) {
         if (kv.first.rfind("test/", 0) == 0) continue;
         ++names;
-        if (kv.first == "lights" || kv.first == "light_rays") EXPECT_EQ(kv.second, 0u) << kv.first;
+        if (kv.first == "lights" || kv.first == "light_rays") {
+            EXPECT_EQ(kv.second, 0u) << kv.first;
+        }
     }
     EXPECT_EQ(names, 21u);
 }
