@@ -75,9 +75,17 @@ Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, LightStats* 
 Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, LightStats* stats) const {
     const bool shadows = rays_ && l.castShadow;
     const Vec3 from = p + n * lift_;
-    Vec3 to[kMaxRays];
-    double w[kMaxRays];
-    char clear[kMaxRays];
+    // Per thread, allocated once: arrays of kMaxRays Vec3 on the stack would be zeroed (Vec3's
+    // initialisers) for every light at every texel.
+    struct Scratch {
+        std::vector<Vec3> to = std::vector<Vec3>(kMaxRays);
+        std::vector<double> w = std::vector<double>(kMaxRays);
+        std::vector<char> clear = std::vector<char>(kMaxRays);
+    };
+    thread_local Scratch scratch;
+    Vec3* to = scratch.to.data();
+    double* w = scratch.w.data();
+    char* clear = scratch.clear.data();
     // Sum of w over the points whose segment from `from` is clear. With `shortcut` the first few points
     // decide: when they all agree (full light, umbra) the rest are taken to agree too.
     auto clearWeight = [&](int count, bool shortcut = true) {
