@@ -142,7 +142,7 @@ SETTINGS = (
             "0: the final gather's shadows come from the solution (smooth, as exact as the refinement). More: "
             "up to this many shadow rays per lamp and texel instead (sharper contact shadows, but detailed "
             "shadows need hundreds)", group="refinement"),
-    Setting("light_rays", int, 64, ("[", 1, 1024, "]"), "Light Rays",
+    Setting("light_rays", int, 256, ("[", 1, 1024, "]"), "Light Rays",
             "Shadow rays per point, spot or sun lamp with a size (radius, angle) and for the world, per texel: "
             "the steps of their soft shadows (a lamp of radius 0 takes one ray, a hard shadow)",
             group="refinement"),

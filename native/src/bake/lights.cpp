@@ -18,10 +18,10 @@ void frame(const Vec3& w, Vec3& t1, Vec3& t2) {
 }
 
 // Sample k of `count` on the unit disk: the Sobol' net, shifted off the disk's centre and edge by half
-// a cell, mapped by area (radius sqrt(u)).
-void diskPoint(int k, int count, double& x, double& y) {
-    double u = std::fmod(sobol(uint32_t(k), 0) + 0.5 / count, 1.0);
-    double v = std::fmod(sobol(uint32_t(k), 1) + 0.5 / count, 1.0);
+// a cell and by `shift` (toroidally), mapped by area (radius sqrt(u)).
+void diskPoint(int k, int count, const double shift[2], double& x, double& y) {
+    double u = std::fmod(sobol(uint32_t(k), 0) + 0.5 / count + shift[0], 1.0);
+    double v = std::fmod(sobol(uint32_t(k), 1) + 0.5 / count + shift[1], 1.0);
     double r = std::sqrt(u), phi = 2 * M_PI * v;
     x = r * std::cos(phi);
     y = r * std::sin(phi);
@@ -66,13 +66,19 @@ LightSet::LightSet(const Scene& sc, const RayCaster* rays, int maxRays)
 }
 
 Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, LightStats* stats) const {
+    static const double none[2] = {0, 0};
+    return irradiance(p, n, maxRays, none, stats);
+}
+
+Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const {
     int m = maxRays < 0 ? maxRays_ : powerOfTwoBelow(std::clamp(maxRays, 1, kMaxRays));
     Rgb sum;
-    for (const Light& l : sc_.lights) sum += one(l, p, n, m, stats);
+    for (const Light& l : sc_.lights) sum += one(l, p, n, m, shift, stats);
     return sum;
 }
 
-Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, LightStats* stats) const {
+Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
+                  LightStats* stats) const {
     const bool shadows = rays_ && l.castShadow;
     const Vec3 from = p + n * lift_;
     // Per thread, allocated once: arrays of kMaxRays Vec3 on the stack would be zeroed (Vec3's
@@ -131,7 +137,7 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, Lig
             frame(dir, t1, t2);
             for (int k = 0; k < count; ++k) {
                 double x, y;
-                diskPoint(k, count, x, y);
+                diskPoint(k, count, shift, x, y);
                 to[k] = l.position + (t1 * x + t2 * y) * l.radius;
                 w[k] = spot ? spotAttenuation(l, dot(normalize(p - to[k]), l.direction)) : 1.0;
             }
@@ -155,7 +161,7 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, Lig
             double axial = 0, cosSum = 0;
             for (int k = 0; k < count; ++k) {
                 double x, y;
-                diskPoint(k, count, x, y);
+                diskPoint(k, count, shift, x, y);
                 Vec3 dir = normalize(w0 + (t1 * x + t2 * y) * t);
                 to[k] = from + dir * far_;
                 w[k] = std::max(0.0, dot(dir, n));
@@ -178,7 +184,7 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, Lig
             frame(n, t1, t2);
             for (int k = 0; k < count; ++k) {
                 double x, y;
-                diskPoint(k, count, x, y);
+                diskPoint(k, count, shift, x, y);
                 double z = std::sqrt(std::max(0.0, 1 - x * x - y * y));
                 to[k] = from + (t1 * x + t2 * y + n * z) * far_;
                 w[k] = 1;
@@ -207,9 +213,20 @@ Rgb LightSet::elementIrradiance(const Element& e, const Vec3& n, LightStats* sta
         pts[2] = e.pointAt(1.0 / 6, 2.0 / 3);
         np = 3;
     }
-    int m = std::min(maxRays_, 16);
+    // Each point turns the Sobol' set by its own fixed offset: with one set for all, every element of a
+    // wall saw the sky through a window along the same 16 directions, and the room came out 2.8 %
+    // darker than Cycles (0.7 % with 256 directions; 0.65 % with 32 turned ones, the Cycles reference's
+    // own noise being 1.1 % per face).
+    int m = std::min(maxRays_, 32);
     Rgb sum;
-    for (int k = 0; k < np; ++k) sum += irradiance(pts[k], n, m, stats);
+    for (int k = 0; k < np; ++k) {
+        uint64_t h = (e.key + uint64_t(k) + 1) * 0x9E3779B97F4A7C15ull;
+        h ^= h >> 29;
+        h *= 0xBF58476D1CE4E5B9ull;
+        h ^= h >> 32;
+        double shift[2] = {double(h & 0xFFFFFFFFu) / 4294967296.0, double(h >> 32) / 4294967296.0};
+        sum += irradiance(pts[k], n, m, shift, stats);
+    }
     return sum / double(np);
 }
 

@@ -21,15 +21,19 @@ struct LightStats {
 class LightSet {
 public:
     // `rays`: null for no shadows at all. `maxRays`: sample points per light and point at most, for
-    // lights with a size and the world (rounded down to a power of two, at most kMaxRays).
+    // lights with a size and the world (rounded down to a power of two, at most kMaxRays; up to 32 for
+    // elements).
     LightSet(const Scene& sc, const RayCaster* rays, int maxRays);
     bool empty() const { return sc_.lights.empty(); }
     size_t size() const { return sc_.lights.size(); }
 
     // Irradiance (W/m^2) at p with normal n, recentred coordinates; `maxRays` < 0 takes the set's.
     Rgb irradiance(const Vec3& p, const Vec3& n, int maxRays = -1, LightStats* stats = nullptr) const;
-    // The mean over an element of a receiving face (quadrature points, fewer rays): what the solver
-    // adds to the element's gathered irradiance.
+    // The same with the sample set turned by `shift` in [0, 1)^2 (a toroidal shift of the Sobol' net).
+    Rgb irradiance(const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const;
+    // The mean over an element of a receiving face (quadrature points, fewer rays, each point's sample
+    // set turned by a fixed offset from the element's key): what the solver adds to the element's
+    // gathered irradiance.
     Rgb elementIrradiance(const Element& e, const Vec3& n, LightStats* stats = nullptr) const;
     // Per element of h (0 for inner elements and non-receivers), in parallel.
     std::vector<Rgb> leafIrradiance(const Hierarchy& h, int threads, LightStats* stats = nullptr) const;
@@ -37,7 +41,7 @@ public:
     static constexpr int kMaxRays = 1024;
 
 private:
-    Rgb one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, LightStats* stats) const;
+    Rgb one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const;
     const Scene& sc_;
     const RayCaster* rays_;
     int maxRays_;
