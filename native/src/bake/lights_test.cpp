@@ -207,6 +207,23 @@ TEST(Lights, PointLightInAClosedRoomConservesEnergy) {
     }
 }
 
+// The project's promise holds with lamps and a sky: the same output for any thread count.
+TEST(Lights, BitIdenticalForAnyThreadCount) {
+    TestScene t = testing::litRoom();
+    Light p = pointLight({0.3, -0.2, 1.2}, 40, 0.1), w;
+    w.type = LightType::World;
+    w.value = {0.3, 0.4, 0.5};
+    std::vector<float> out[2];
+    for (int k = 0; k < 2; ++k) {
+        Settings s;
+        s.threads = k ? 3 : 1;
+        s.epsilon = 0.002;
+        out[k] = testing::bakeAll(*solveLit(t, {p, w}, s), t, 32);
+    }
+    ASSERT_EQ(out[0].size(), out[1].size());
+    EXPECT_TRUE(out[0] == out[1]);
+}
+
 TEST(Lights, LightsAloneAreEnoughAndBadLightsAreRefused) {
     TestScene t = openFloor();
     SceneInput in = t.input();
