@@ -178,3 +178,48 @@ def test_startup_scene_bakes_in_one_call(penumbra):
     print(f"startup cube top: max rel. error {rel.max():.5f}")
     assert rel.max() < 0.01
     bpy.ops.wm.read_homefile(use_empty=True)
+
+
+def _environment_world(scene, pixels, strength):
+    h, w, _ = pixels.shape
+    img = bpy.data.images.new("Env", w, h, alpha=False, float_buffer=True)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = pixels
+    img.pixels.foreach_set(rgba.ravel())
+    img.update()
+    world = bpy.data.worlds.new("Env")
+    world.use_nodes = True
+    nt = world.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    nt.nodes["Background"].inputs["Strength"].default_value = strength
+    scene.world = world
+
+
+def test_environment_image_sky_and_ground(empty_scene, penumbra):
+    """An equirectangular map whose upper half (the sky) is one colour: an upward plane sees only that."""
+    _scene(empty_scene)
+    sky, ground = np.array([0.2, 0.4, 0.9]), np.array([0.9, 0.3, 0.1])
+    px = np.empty((16, 32, 3), np.float32)
+    px[:8], px[8:] = ground, sky                    # rows from the bottom: v < 0.5 looks down
+    _environment_world(empty_scene, px, 1.5)
+    report, got, _ = _bake_plane(penumbra, empty_scene)
+    assert report["export"]["world"] == 1 and not report["skipped"]
+    _compare(got, np.tile(math.pi * 1.5 * sky, (len(got), 1)))
+
+
+def test_environment_image_azimuth_follows_cycles(empty_scene, penumbra):
+    """Cycles' mapping puts +Y at u = 0.25 and -Y at u = 0.75: a plane facing +Y sees only u < 0.5."""
+    empty_scene.world = None
+    plane = helpers.quad_object("Plane", HALF, HALF, material=helpers.diffuse_material("Lambert", ALBEDO))
+    plane.rotation_euler = (-math.pi / 2, 0, 0)     # its normal +Z turned to +Y
+    bpy.context.view_layer.update()
+    left, right = np.array([0.3, 0.6, 0.2]), np.array([1.0, 0.1, 0.1])
+    px = np.empty((16, 32, 3), np.float32)
+    px[:, :16], px[:, 16:] = left, right
+    _environment_world(empty_scene, px, 1.0)
+    report = penumbra.bake(empty_scene, resolution=RES, targets={"LIGHTMAP"}, epsilon=0.002)
+    got = helpers.image_pixels(bpy.data.images[report["outputs"]["Plane"]["image"]])
+    mask, _ = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
+    _compare(got[mask][:, :3], np.tile(math.pi * left, (int(mask.sum()), 1)))

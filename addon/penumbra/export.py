@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .materials import parse_material
+from .materials import image_rgb, parse_material
 
 EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
@@ -193,7 +193,33 @@ def lamp_light(light, matrix, name, index):
 
 
 def world_light(scene, result):
-    """The world as a uniform background: (radiance (r, g, b) or None, a reason it was skipped or None)."""
+    """The world for the solver: (its light dict without "object", or None; a reason it was skipped, or None).
+
+    A uniform Background colour, or an Environment Texture (equirectangular, default vector) on its Color."""
+    value, why = _world_value(scene)
+    if isinstance(value, dict) or value is None:
+        return value, why
+    return {"type": "WORLD", "value": value}, why
+
+
+def _environment(node, strength):
+    """A Background colour linked straight from an equirectangular Environment Texture: its light dict."""
+    if node.type != "TEX_ENVIRONMENT":
+        return None, ("world lighting from a texture or sky other than an Environment Texture is not supported "
+                      "yet (only a uniform colour or an equirectangular image)")
+    if node.projection != "EQUIRECTANGULAR" or node.inputs["Vector"].is_linked:
+        return None, ("world Environment Texture with a mirror-ball projection or a linked Vector (mapping) is "
+                      "not supported yet")
+    try:
+        rgb = image_rgb(node.image)
+    except Exception as e:  # a missing file: say so rather than bake the scene dark
+        return None, f"world Environment Texture cannot be read ({e})"
+    if strength <= 0 or not (rgb > 0).any():
+        return None, None
+    return {"type": "WORLD", "value": (strength,) * 3, "environment": rgb}, None
+
+
+def _world_value(scene):
     w = scene.world
     if w is None:
         return None, None
@@ -212,8 +238,7 @@ def world_light(scene, result):
     if c.is_linked:
         if s.default_value <= 0:
             return None, None
-        return None, ("world lighting from a texture or sky is not supported yet (only a uniform Background "
-                      "colour)")
+        return _environment(c.links[0].from_node, float(s.default_value))
     value = np.array(c.default_value[:3], np.float64) * float(s.default_value)
     return (tuple(value) if (value > 0).any() else None), None
 
@@ -333,7 +358,7 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         res.skip(scene.world.name, why)
     elif world is not None:
         res.object_names.append(f"World '{scene.world.name}'")
-        res.lights.append({"type": "WORLD", "value": world, "object": len(res.object_names) - 1})
+        res.lights.append(dict(world, object=len(res.object_names) - 1))
     if polys:
         res.vertices = np.ascontiguousarray(np.concatenate(verts), np.float32)
         res.polygons = np.ascontiguousarray(np.concatenate(polys), np.int32)

@@ -180,7 +180,7 @@ Light parseLight(const py::handle& h) {
     for (auto item : d) {
         std::string k = py::str(item.first);
         static const char* known[] = {"type", "value", "position", "direction", "radius", "spot_size",
-                                      "spot_blend", "angle", "cast_shadow", "object"};
+                                      "spot_blend", "angle", "cast_shadow", "object", "environment"};
         if (std::find(std::begin(known), std::end(known), k) == std::end(known))
             throw py::value_error("light: unknown key '" + k + "'");
     }
@@ -209,6 +209,12 @@ Light parseLight(const py::handle& h) {
     l.angle = num("angle", 0);
     l.castShadow = d.contains("cast_shadow") ? d["cast_shadow"].cast<bool>() : true;
     l.object = d.contains("object") ? d["object"].cast<int>() : -1;
+    if (d.contains("environment") && !d["environment"].is_none()) {
+        auto img = checked<float>(d["environment"], "environment", {-1, -1, 3});
+        l.envHeight = int(img.shape(0));
+        l.envWidth = int(img.shape(1));
+        l.env.assign(img.data(), img.data() + img.size());
+    }
     return l;
 }
 

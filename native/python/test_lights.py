@@ -50,6 +50,9 @@ def test_lights_alone_light_the_scene_in_cycles_units():
     ({"type": "SPOT", "value": (1, 1, 1), "spot_size": 0.0}, "spot size"),
     ({"type": "SUN", "value": (1, 1, 1), "angle": 4.0}, "sun angle"),
     ({"type": "POINT", "value": (1, 1, 1), "position": (0, float("nan"), 1)}, "NaN"),
+    ({"type": "POINT", "value": (1, 1, 1), "environment": np.ones((2, 4, 3), np.float32)}, "only the world"),
+    ({"type": "WORLD", "value": (1, 1, 1), "environment": np.ones((2, 4, 3))}, "dtype float32"),
+    ({"type": "WORLD", "value": (1, 1, 1), "environment": -np.ones((2, 4, 3), np.float32)}, "negative"),
 ])
 def test_bad_lights_are_refused_by_name(light, message):
     with pytest.raises(ValueError, match=message):

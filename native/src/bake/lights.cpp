@@ -53,6 +53,18 @@ double spotAttenuation(const Light& l, double cosAxis) {
     return a;
 }
 
+Rgb envRadiance(const Light& l, const Vec3& d) {
+    // Cycles' equirectangular mapping: u from the azimuth (0.5 looking along +X, 0.25 along +Y), v from
+    // the elevation (0 straight down, 1 straight up); the nearest pixel (Cycles' Linear interpolation
+    // would blend four; the irradiance integral does not see the difference at map resolutions).
+    double u = -std::atan2(d.y, d.x) / (2 * M_PI) + 0.5;
+    double v = std::atan2(d.z, std::hypot(d.x, d.y)) / M_PI + 0.5;
+    int x = std::clamp(int(u * l.envWidth), 0, l.envWidth - 1);
+    int y = std::clamp(int(v * l.envHeight), 0, l.envHeight - 1);
+    const float* px = l.env.data() + (size_t(y) * size_t(l.envWidth) + size_t(x)) * 3;
+    return {px[0], px[1], px[2]};
+}
+
 double sunDiskFactor(double angle) {
     double t = std::tan(0.5 * std::min(angle, M_PI * (179.0 / 180.0)));
     if (t < 1e-4) return 1 - 0.25 * t * t;  // the series: the closed form cancels badly here
@@ -179,7 +191,7 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, con
         case LightType::World: {
             // Cosine-weighted directions: every clear one carries pi L / count.
             int count = maxRays;
-            if (!shadows) return l.value * M_PI;
+            if (!shadows && l.env.empty()) return l.value * M_PI;
             Vec3 t1, t2;
             frame(n, t1, t2);
             for (int k = 0; k < count; ++k) {
@@ -191,7 +203,15 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, con
             }
             // Every direction is cast: a wall low on the horizon can hide a few percent of the sky from
             // every one of eight points (5.6 % at twice the wall's height away).
-            return l.value * (M_PI * clearWeight(count, false) / count);
+            if (l.env.empty()) return l.value * (M_PI * clearWeight(count, false) / count);
+            // An environment: every clear direction carries pi L(direction) / count. Fixed directions see
+            // a map's detail unevenly; the irradiance of a smooth sky (what light through a window is)
+            // is what this resolves, a small bright sun in the map is not.
+            clearWeight(count, false);  // fills `clear` when there are shadows
+            Rgb sum;
+            for (int k = 0; k < count; ++k)
+                if (!shadows || clear[k]) sum += envRadiance(l, normalize(to[k] - from));
+            return mul(l.value, sum) * (M_PI / count);
         }
     }
     return {};

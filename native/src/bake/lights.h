@@ -53,6 +53,8 @@ private:
 // 0 to 44 degrees in a 90 degree cone), times a smoothstep over the blend band of width
 // (1 - cos(size/2)) * blend in cosine.
 double spotAttenuation(const Light& l, double cosAxis);
+// A world's environment image at direction d (unit), without the strength.
+Rgb envRadiance(const Light& l, const Vec3& d);
 // A sun of angular diameter `angle` at normal incidence gives strength times this (Cycles spreads the
 // strength uniformly over the disk of radius tan(angle/2) at unit distance).
 double sunDiskFactor(double angle);

@@ -120,6 +120,35 @@ TEST(Lights, UniformWorldOnAnOpenPlane) {
     EXPECT_NEAR(L[2], kRho * 0.8, 1e-6);
 }
 
+// An equirectangular world whose upper half is one colour: an upward floor sees only that half, and
+// Cycles' mapping puts +X at u = 0.5 and +Y at u = 0.25 (checked against a Cycles bake of planes facing
+// +X, -X, +Y and +Z under a four-colour map: within 0.1 %).
+TEST(Lights, EnvironmentImageSkyAndMapping) {
+    Light l;
+    l.type = LightType::World;
+    l.value = {2, 2, 2};
+    l.envWidth = 8;
+    l.envHeight = 4;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 8; ++x) {
+            Rgb c = y >= 2 ? Rgb{0.1, 0.2, 0.3} : Rgb{5, 5, 5};  // rows from the bottom: y < 2 looks down
+            l.env.insert(l.env.end(), {float(c.x), float(c.y), float(c.z)});
+        }
+    auto sol = solveLit(openFloor(), {l});
+    float p[3] = {0.5f, 0.5f, 0}, n[3] = {0, 0, 1};
+    auto L = sol->radiance(p, n, 1);
+    EXPECT_NEAR(L[0], kRho * 2 * 0.1, 1e-6);
+    EXPECT_NEAR(L[2], kRho * 2 * 0.3, 1e-6);
+    Light m = l;
+    for (int y = 0; y < 4; ++y)
+        for (int x = 0; x < 8; ++x)
+            for (int c = 0; c < 3; ++c) m.env[size_t((y * 8 + x) * 3 + c)] = float(x);
+    EXPECT_EQ(envRadiance(m, {1, 0, 0}).x, 4.0);     // u = 0.5
+    EXPECT_EQ(envRadiance(m, {0, 1, 0}).x, 2.0);     // u = 0.25
+    EXPECT_EQ(envRadiance(m, {0, -1, 0}).x, 6.0);    // u = 0.75
+    EXPECT_EQ(envRadiance(m, {-1, -1e-9, 0}).x, 7.0);  // u just under 1
+}
+
 // A wall along x = 0 (black, height H, very long) beside the floor: it hides the part of the sky a
 // floor point at distance x sees as the strip form factor (1 - x / sqrt(x^2 + H^2)) / 2.
 TEST(Lights, WorldIsOccludedByTheScene) {

@@ -214,6 +214,13 @@ Scene buildScene(const SceneInput& in) {
         if (!(l.spotBlend >= 0 && l.spotBlend <= 1)) bad("spot blend must be in [0, 1]");
         if ((l.type == LightType::Spot || l.type == LightType::Sun) && !(length(l.direction) > 0))
             bad("zero direction");
+        if (!l.env.empty()) {
+            if (l.type != LightType::World) bad("only the world takes an environment image");
+            if (l.envWidth <= 0 || l.envHeight <= 0 || l.env.size() != size_t(l.envWidth) * size_t(l.envHeight) * 3)
+                bad("environment image size does not match its pixels");
+            for (float x : l.env)
+                if (!std::isfinite(x) || x < 0) bad("environment image has negative or non-finite pixels");
+        }
         if (!(maxComponent(l.value) > 0)) continue;
         Light c = l;
         c.position = l.position - scene.offset;

@@ -33,6 +33,11 @@ struct Light {
     double angle = 0;       // sun: angular diameter, radians
     bool castShadow = true;
     int object = -1;        // index into objectNames, for messages
+    // World only: an equirectangular environment (Cycles' Environment Texture, default mapping), linear
+    // RGB rows from the bottom (v = 0, straight down) up; `value` multiplies it (the Background strength).
+    // Empty: the uniform `value`.
+    int envWidth = 0, envHeight = 0;
+    std::vector<float> env;
 };
 
 // Borrowed views of the caller's arrays (row-major). Nothing is copied until buildScene.
