@@ -82,8 +82,9 @@ struct Scene {
     double diagonal = 0;
     double maxEmission = 0; // brightest emitted radiosity over channels, the scale of all thresholds
     std::vector<Light> lights;  // recentred; only those that give light
-    // Largest mean irradiance the lights give a receiving face (max channel): their scale for the
-    // refiner's threshold, as maxEmission is the emitters'. Set by solve() once it is known; 0 without lights.
+    // The lights' scale for the refiner's threshold, as maxEmission is the emitters': 50 times the mean
+    // irradiance they give the reflecting faces (max channel; penumbra.cpp says why). Set by solve() once
+    // it is known; 0 without lights.
     double lightScale = 0;
     size_t degenerateSkipped = 0;
     std::vector<std::string> warnings;
