@@ -16,25 +16,35 @@ def _export(scene, **kw):
     return export.export_scene(scene, vl, bpy.context.evaluated_depsgraph_get(), **kw)
 
 
-def test_unsupported_lights_and_world_are_reported_by_name(empty_scene, penumbra):
+def test_lamps_and_world_are_exported_and_unreadable_ones_reported_by_name(empty_scene, penumbra):
     cornell_box.build()
     for kind in ("POINT", "SPOT", "SUN"):
         light = bpy.data.lights.new(f"My{kind}", kind)
         ob = bpy.data.objects.new(f"My{kind}Object", light)
         empty_scene.collection.objects.link(ob)
+    dark = bpy.data.objects.new("DarkBulb", bpy.data.lights.new("DarkBulb", "POINT"))
+    dark.data.energy = 0.0
+    empty_scene.collection.objects.link(dark)
     world = empty_scene.world
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.1, 0.1, 0.1, 1)
+    ex = _export(empty_scene)
+    kinds = sorted(d["type"] for d in ex.lights)
+    assert kinds == ["POINT", "SPOT", "SUN", "WORLD"]
+    assert ex.counts["point_lights"] == ex.counts["spot_lights"] == ex.counts["sun_lights"] == ex.counts["world"] == 1
+    assert {"name": "DarkBulb", "reason": "POINT light with zero power"} in ex.skipped
+    # A world coloured by a texture is not a uniform background: reported by name, not guessed.
+    noise = world.node_tree.nodes.new("ShaderNodeTexNoise")
+    world.node_tree.links.new(noise.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
     report = penumbra.bake(empty_scene, resolution=16, epsilon=0.01)
     skipped = {x["name"]: x["reason"] for x in report["skipped"]}
-    for kind in ("POINT", "SPOT", "SUN"):
-        assert kind in skipped[f"My{kind}Object"]
-    assert "world" in skipped[world.name]
+    assert "texture or sky" in skipped[world.name]
+    assert report["export"]["world"] == 0 and report["export"]["point_lights"] == 1
     text = json.dumps(report)
     assert json.loads(text)["objects_baked"] == report["objects_baked"]
     for key in ("export", "solve", "write_back", "total"):
         assert report["times"][key] >= 0
-    for key in ("elements", "links", "iterations", "residual"):
+    for key in ("elements", "links", "iterations", "residual", "lights", "light_rays"):
         assert key in report
 
 

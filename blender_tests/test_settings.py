@@ -162,10 +162,11 @@ def test_messages_name_what_to_fix(empty_scene):
     # Off in renders, so not exported (hidden only in the viewport, Cycles would still render it).
     lamp.hide_render = True
     point = bpy.data.objects.new("Bulb", bpy.data.lights.new("Bulb", "POINT"))
+    point.data.energy = 0.0
     empty_scene.collection.objects.link(point)
     before = helpers.blend_state()
     msg = _fail(empty_scene)
-    assert "nothing emits light" in msg and "Bulb" in msg and "POINT light is not supported" in msg
+    assert "nothing emits light" in msg and "Bulb" in msg and "POINT light with zero power" in msg
     helpers.assert_same_state(before, helpers.blend_state())
     assert empty_scene.penumbra.last_report == ""
     lamp.hide_render = False
@@ -180,7 +181,7 @@ def test_messages_name_what_to_fix(empty_scene):
     empty_scene.penumbra.resolution = 16
     assert bpy.ops.penumbra.bake() == {"FINISHED"}
     r = _last(empty_scene)
-    assert {"name": "Bulb", "reason": "POINT light is not supported (only AREA lights are)"} in r["skipped"]
+    assert {"name": "Bulb", "reason": "POINT light with zero power"} in r["skipped"]
     assert any(x["name"] == "Wire" and "no faces" in x["reason"] for x in r["skipped"])
     assert any("RightWall" in w and "Green" in w for w in r["warnings"])
     rt = bpy.context.window_manager.penumbra

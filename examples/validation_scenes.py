@@ -50,7 +50,8 @@ import cornell_box  # noqa: E402
 from scenes import MeshBuilder, _area_light, _black_world, _camera, _diffuse  # noqa: E402
 
 SCENES = ("lamp_gap_1mm", "lamp_gap_5mm", "lamp_gap_2cm", "lamp_gap_10cm", "lamp_gap_5mm_cut", "area_gap_5mm",
-          "sconce_1cm", "desk_lamp", "stacked_rooms", "contacts", "thin_sheet", "curved", "small_lamp", "cornell")
+          "sconce_1cm", "desk_lamp", "stacked_rooms", "contacts", "thin_sheet", "curved", "small_lamp", "cornell",
+          "point_spot", "sun_window")
 
 W, D, H = 4.0, 3.0, 2.6           # room size (x, y, z)
 CUT_FACE = 0.5                     # face size of lamp_gap_5mm_cut's room; the others' surfaces are single quads
@@ -258,6 +259,60 @@ def build_small_lamp(scene=None):
     return _room_camera(obs, scene)
 
 
+def _lamp(name, kind, location, rotation_deg=(0, 0, 0), scene=None, **props):
+    light = bpy.data.lights.new(name, kind)
+    for k, v in props.items():
+        setattr(light, k, v)
+    ob = bpy.data.objects.new(name, light)
+    ob.location = location
+    ob.rotation_euler = tuple(math.radians(a) for a in rotation_deg)
+    (scene or bpy.context.scene).collection.objects.link(ob)
+    return ob
+
+
+def build_point_spot(scene=None):
+    """The room lit by a 150 W point lamp of radius 10 cm and a 300 W spot (60 degrees, blend 0.3) aimed at the
+    right wall: no emitting face at all (issue 13)."""
+    scene = scene or bpy.context.scene
+    obs = room(scene=scene)
+    obs["Bulb"] = _lamp("Bulb", "POINT", (-0.8, 0.3, 2.0), scene=scene, energy=150.0, shadow_soft_size=0.1,
+                        color=LAMP_COLOR)
+    obs["Spot"] = _lamp("Spot", "SPOT", (0.6, -0.6, 2.4), (0.0, -50.0, 20.0), scene=scene, energy=300.0,
+                        shadow_soft_size=0.05, spot_size=math.radians(60), spot_blend=0.3)
+    return _room_camera(obs, scene)
+
+
+def build_sun_window(scene=None):
+    """The room with a 1.6 m x 1.1 m window in its front wall (-y), a 3 W/m^2 sun of 2 degrees shining in at 35
+    degrees and a uniform blue-grey sky (issue 13)."""
+    scene = scene or bpy.context.scene
+    w, d, h = W, D, H
+    x0, y0 = -w / 2, -d / 2
+    obs = {}
+    fl = MeshBuilder()
+    fl.grid((x0, y0, 0), (w, 0, 0), (0, d, 0), 1, 1)
+    obs["Floor"] = fl.build("Floor", [_diffuse("FloorMat", FLOOR)], scene)
+    ce = MeshBuilder()
+    ce.grid((x0, y0, h), (0, d, 0), (w, 0, 0), 1, 1)
+    obs["Ceiling"] = ce.build("Ceiling", [_diffuse("CeilingMat", CEILING)], scene)
+    wa = MeshBuilder()
+    wa.grid((x0, -y0, 0), (w, 0, 0), (0, 0, h), 1, 1, mat=0)                 # back (+y)
+    wa.grid((x0, y0, 0), (0, d, 0), (0, 0, h), 1, 1, mat=1)                  # left (-x)
+    wa.grid((-x0, y0, 0), (0, 0, h), (0, d, 0), 1, 1, mat=2)                 # right (+x)
+    wx0, wx1, wz0, wz1 = -0.8, 0.8, 0.9, 2.0                                   # the window in the front wall
+    for (a, b, c, e) in ((x0, wx0, 0, h), (wx1, -x0, 0, h), (wx0, wx1, 0, wz0), (wx0, wx1, wz1, h)):
+        wa.grid((a, y0, c), (0, 0, e - c), (b - a, 0, 0), 1, 1, mat=0)         # front (-y), normal +y
+    obs["Walls"] = wa.build("Walls", [_diffuse("WallWhite", WHITE), _diffuse("WallRed", RED),
+                                      _diffuse("WallBlue", BLUE)], scene)
+    obs["Sun"] = _lamp("Sun", "SUN", (0, -4, 4), (55.0, 0.0, 20.0), scene=scene, energy=3.0,
+                       angle=math.radians(2))
+    out = _room_camera(obs, scene)
+    bg = scene.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.35, 0.45, 0.6, 1)
+    bg.inputs["Strength"].default_value = 1.0
+    return out
+
+
 def build(name, scene=None):
     """Build a validation scene into the current (empty) file; returns {name: object}."""
     if name in GAPS:
@@ -266,7 +321,8 @@ def build(name, scene=None):
         return build_lamp_gap(0.005, scene, face=CUT_FACE)
     builders = {"area_gap_5mm": build_area_gap, "sconce_1cm": build_sconce, "desk_lamp": build_desk_lamp,
                 "stacked_rooms": build_stacked_rooms, "contacts": build_contacts, "thin_sheet": build_thin_sheet,
-                "curved": build_curved, "small_lamp": build_small_lamp,
+                "curved": build_curved, "small_lamp": build_small_lamp, "point_spot": build_point_spot,
+                "sun_window": build_sun_window,
                 "cornell": lambda scene=None: cornell_box.build(scene)}  # the main job's scene, per texel
     if name not in builders:
         raise ValueError(f"unknown validation scene {name!r}; known: {', '.join(SCENES)}")

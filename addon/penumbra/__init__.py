@@ -144,7 +144,7 @@ class Job:
             def cb(stage, frac):
                 return progress(stage, frac) is not False
         solution = _native.solve(ex.vertices, ex.polygons, ex.reflectance, ex.emission, ex.flags,
-                                 ex.object_index, ex.object_names, self.solver_settings, cb)
+                                 ex.object_index, ex.object_names, self.solver_settings, cb, ex.lights)
         report["times"]["solve"] = time.perf_counter() - t
         native_report = _jsonable(dict(solution.report))
         report["solver"] = native_report
@@ -307,10 +307,10 @@ def begin(scene=None, progress=None, **settings):
         if not ex.bake_objects:
             raise BakeError("no object can be baked (visible, non-instanced mesh objects with faces)" + where
                             + _skipped_text(ex.skipped))
-        if not (ex.emission > 0).any():
-            lights = [x for x in ex.skipped if "light" in x["reason"]]
-            raise BakeError("nothing emits light" + where + ": add an Area light, or a material with an "
-                            "Emission shader or Principled Emission above zero"
+        if not (ex.emission > 0).any() and not ex.lights:
+            lights = [x for x in ex.skipped if "light" in x["reason"] or "world" in x["reason"]]
+            raise BakeError("nothing emits light" + where + ": add a light (area, point, spot or sun), a world "
+                            "colour, or a material with an Emission shader or Principled Emission above zero"
                             + (" (not supported: " + ", ".join(f"{x['name']}: {x['reason']}" for x in lights)
                                + ")" if lights else ""))
         if s["uv_map"]:

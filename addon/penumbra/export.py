@@ -1,4 +1,7 @@
-"""Scene export: Blender's evaluated geometry, materials and area lights as flat numpy arrays for the solver.
+"""Scene export: Blender's evaluated geometry, materials and lights as flat numpy arrays for the solver.
+
+Area lights become light-only polygons; point, spot and sun lights and a uniform world become the solver's
+analytic lights (a list of dicts, `Exported.lights`).
 
 Everything is world space and in Cycles' units (blender-facts §1). Per-element work is done with
 `foreach_get` and numpy; Python loops run over objects, material slots and lights only.
@@ -8,7 +11,7 @@ import math
 import bpy
 import numpy as np
 
-from .materials import parse_material
+from .materials import image_rgb, parse_material
 
 PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writeback, which needs bpy data)
 
@@ -36,6 +39,7 @@ class Exported:
         self.flags = np.zeros(0, np.uint8)
         self.object_index = np.zeros(0, np.int32)
         self.object_names = []
+        self.lights = []              # _native.solve's lights: point, spot, sun and the world
         self.bake_objects = []        # names of original mesh objects that get a lightmap / attribute
         self.skipped = []             # {"name", "reason"}
         self.warnings = []
@@ -185,26 +189,85 @@ def _polygon_area(p):
     return 0.5 * float(np.linalg.norm(s))
 
 
-def _world_report(scene, result):
+def _cast_shadow(light):
+    # Cycles' own settings are an add-on property group, which a change does not re-evaluate: read the original.
+    light = getattr(light, "original", None) or light
+    cyc = getattr(light, "cycles", None)
+    return bool(getattr(cyc, "cast_shadow", True)) if cyc is not None else bool(getattr(light, "use_shadow", True))
+
+
+def lamp_light(light, matrix, name, index):
+    """The solver's dict for a POINT, SPOT or SUN light in Cycles' units (blender-facts section 1), or None
+    when it gives no light."""
+    m = np.asarray(matrix, np.float64)
+    colour = np.array(light.color[:3], np.float64)
+    value = float(light.energy) * colour
+    if not (value > 0).any():
+        return None
+    # Lamps emit along their local -Z; Cycles ignores the object's scale for their size.
+    down = -m[:3, 2]
+    norm = np.linalg.norm(down)
+    d = {"type": light.type, "value": tuple(value), "cast_shadow": _cast_shadow(light), "object": index,
+         "position": tuple(m[:3, 3]), "direction": tuple(down / norm) if norm > 0 else (0.0, 0.0, -1.0)}
+    if light.type in ("POINT", "SPOT"):
+        d["radius"] = float(light.shadow_soft_size)
+    if light.type == "SPOT":
+        d["spot_size"] = float(light.spot_size)
+        d["spot_blend"] = float(light.spot_blend)
+    if light.type == "SUN":
+        d["angle"] = float(light.angle)
+    return d
+
+
+def world_light(scene, result):
+    """The world for the solver: (its light dict without "object", or None; a reason it was skipped, or None).
+
+    A uniform Background colour, or an Environment Texture (equirectangular, default vector) on its Color."""
+    value, why = _world_value(scene)
+    if isinstance(value, dict) or value is None:
+        return value, why
+    return {"type": "WORLD", "value": value}, why
+
+
+def _environment(node, strength):
+    """A Background colour linked straight from an equirectangular Environment Texture: its light dict."""
+    if node.type != "TEX_ENVIRONMENT":
+        return None, ("world lighting from a texture or sky other than an Environment Texture is not supported "
+                      "yet (only a uniform colour or an equirectangular image)")
+    if node.projection != "EQUIRECTANGULAR" or node.inputs["Vector"].is_linked:
+        return None, ("world Environment Texture with a mirror-ball projection or a linked Vector (mapping) is "
+                      "not supported yet")
+    try:
+        rgb = image_rgb(node.image)
+    except Exception as e:  # a missing file: say so rather than bake the scene dark
+        return None, f"world Environment Texture cannot be read ({e})"
+    if strength <= 0 or not (rgb > 0).any():
+        return None, None
+    return {"type": "WORLD", "value": (strength,) * 3, "environment": rgb}, None
+
+
+def _world_value(scene):
     w = scene.world
     if w is None:
-        return
-    strength = 0.0
-    if w.use_nodes and w.node_tree is not None:
-        out = w.node_tree.get_output_node("CYCLES")
-        if out is not None and out.inputs["Surface"].is_linked:
-            node = out.inputs["Surface"].links[0].from_node
-            if node.type == "BACKGROUND":
-                c = node.inputs["Color"]
-                s = node.inputs["Strength"]
-                strength = (1.0 if c.is_linked else max(c.default_value[:3])) * \
-                           (1.0 if s.is_linked else s.default_value)
-            else:
-                strength = 1.0
-    else:
-        strength = max(w.color)
-    if strength > 0:
-        result.skip(w.name, "world lighting is ignored (only meshes and area lights emit)")
+        return None, None
+    if not (w.use_nodes and w.node_tree is not None):
+        c = np.array(w.color[:3], np.float64)
+        return (tuple(c) if (c > 0).any() else None), None
+    out = w.node_tree.get_output_node("CYCLES")
+    if out is None or not out.inputs["Surface"].is_linked:
+        return None, None
+    node = out.inputs["Surface"].links[0].from_node
+    if node.type != "BACKGROUND":
+        return None, f"world shader '{node.bl_idname}' is not supported (only a Background node)"
+    c, s = node.inputs["Color"], node.inputs["Strength"]
+    if s.is_linked:
+        return None, "world Strength from a node is not supported (only a number)"
+    if c.is_linked:
+        if s.default_value <= 0:
+            return None, None
+        return _environment(c.links[0].from_node, float(s.default_value))
+    value = np.array(c.default_value[:3], np.float64) * float(s.default_value)
+    return (tuple(value) if (value > 0).any() else None), None
 
 
 def rendered_objects(view_layer):
@@ -333,8 +396,18 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
 
         if ob_eval.type == "LIGHT":
             light = ob_eval.data
+            if light.type in ("POINT", "SPOT", "SUN"):
+                k = len(res.object_names)
+                d = lamp_light(light, matrix, name, k)
+                if d is None:
+                    res.skip(name, f"{light.type} light with negative power ({light.energy:g} W) is not supported"
+                                   if light.energy < 0 else f"{light.type} light with zero power")
+                    continue
+                res.object_names.append(name)
+                res.lights.append(d)
+                continue
             if light.type != "AREA":
-                res.skip(name, f"{light.type} light is not supported (only AREA lights are)")
+                res.skip(name, f"{light.type} light is not supported")
                 continue
             if abs(light.spread - math.pi) > 1e-4:
                 res.warnings.append(f"area light '{name}': spread {math.degrees(light.spread):.0f} deg is "
@@ -417,7 +490,12 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
                            f"light) but only mesh objects get a lightmap (convert it to a mesh to bake it)")
         else:
             res.skip(name, f"not exported: the {kind} object has no faces (Cycles renders none either)")
-    _world_report(scene, res)
+    world, why = world_light(scene, res)
+    if why:
+        res.skip(scene.world.name, why)
+    elif world is not None:
+        res.object_names.append(f"World '{scene.world.name}'")
+        res.lights.append(dict(world, object=len(res.object_names) - 1))
     if polys:
         res.vertices = np.ascontiguousarray(np.concatenate(verts), np.float32)
         res.polygons = np.ascontiguousarray(np.concatenate(polys), np.int32)
@@ -425,7 +503,10 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         res.emission = np.ascontiguousarray(np.concatenate(emit), np.float32)
         res.flags = np.ascontiguousarray(np.concatenate(flags), np.uint8)
         res.object_index = np.ascontiguousarray(np.concatenate(oidx), np.int32)
+    kinds = [d["type"] for d in res.lights]
     res.counts = {"objects": len(res.object_names), "area_lights": n_lights,
+                  "point_lights": kinds.count("POINT"), "spot_lights": kinds.count("SPOT"),
+                  "sun_lights": kinds.count("SUN"), "world": kinds.count("WORLD"),
                   "polygons": int(len(res.polygons)), "vertices": int(len(res.vertices)),
                   "emitting_polygons": int((res.emission.max(axis=1) > 0).sum()) if len(res.emission) else 0}
     return res

@@ -33,6 +33,12 @@ def _srgb_to_linear(c):
 
 def image_average(image):
     """Mean linear RGB of an image (its pixels, with sRGB decoded when the image stores display values)."""
+    return tuple(float(x) for x in image_rgb(image).reshape(-1, 3).mean(axis=0))
+
+
+def image_rgb(image):
+    """Linear RGB pixels of an image, (height, width, 3) float32, rows from the bottom (sRGB decoded when
+    the image stores display values)."""
     if image is None:
         raise ValueError("no image")
     w, h = image.size
@@ -47,7 +53,7 @@ def image_average(image):
     cs = image.colorspace_settings
     if not image.is_float and not cs.is_data and cs.name.lower().startswith("srgb"):
         rgb = _srgb_to_linear(rgb.astype(np.float64))
-    return tuple(float(x) for x in rgb.mean(axis=0))
+    return np.ascontiguousarray(rgb.reshape(h, w, 3), np.float32)
 
 
 def _follow(socket):

@@ -142,6 +142,10 @@ SETTINGS = (
             "0: the final gather's shadows come from the solution (smooth, as exact as the refinement). More: "
             "up to this many shadow rays per lamp and texel instead (sharper contact shadows, but detailed "
             "shadows need hundreds)", group="refinement"),
+    Setting("light_rays", int, 256, ("[", 1, 1024, "]"), "Light Rays",
+            "Shadow rays per point, spot or sun lamp with a size (radius, angle) and for the world, per texel: "
+            "the steps of their soft shadows (a lamp of radius 0 takes one ray, a hard shadow)",
+            group="refinement"),
     # Budgets: the solver stops with BudgetExceeded before taking the memory. Not in the panel.
     Setting("max_elements", int, 2000000, ("[", 1, 2**30, "]"), "Max Elements",
             "Quadtree elements, about 400 bytes each at the peak"),

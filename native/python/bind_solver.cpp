@@ -4,6 +4,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <type_traits>
@@ -171,6 +172,52 @@ py::dict reportDict(const Report& r, const std::vector<std::string>& names) {
     return d;
 }
 
+// One light from a dict: {"type": "POINT" | "SPOT" | "SUN" | "WORLD", "value": (r, g, b), and as the type
+// needs "position", "direction", "radius", "spot_size", "spot_blend", "angle", "cast_shadow", "object"}.
+Light parseLight(const py::handle& h) {
+    if (!py::isinstance<py::dict>(h)) throw py::value_error("each light must be a dict");
+    py::dict d = py::reinterpret_borrow<py::dict>(h);
+    for (auto item : d) {
+        std::string k = py::str(item.first);
+        static const char* known[] = {"type", "value", "position", "direction", "radius", "spot_size",
+                                      "spot_blend", "angle", "cast_shadow", "object", "environment"};
+        if (std::find(std::begin(known), std::end(known), k) == std::end(known))
+            throw py::value_error("light: unknown key '" + k + "'");
+    }
+    auto vec = [&](const char* k, Vec3 def) {
+        if (!d.contains(k)) return def;
+        auto v = d[k].cast<std::vector<double>>();
+        if (v.size() != 3) throw py::value_error(std::string("light: '") + k + "' must have 3 numbers");
+        return Vec3{v[0], v[1], v[2]};
+    };
+    auto num = [&](const char* k, double def) { return d.contains(k) ? d[k].cast<double>() : def; };
+    Light l;
+    if (!d.contains("type")) throw py::value_error("light: missing 'type'");
+    std::string t = py::str(d["type"]);
+    if (t == "POINT") l.type = LightType::Point;
+    else if (t == "SPOT") l.type = LightType::Spot;
+    else if (t == "SUN") l.type = LightType::Sun;
+    else if (t == "WORLD") l.type = LightType::World;
+    else throw py::value_error("light: type must be POINT, SPOT, SUN or WORLD, got '" + t + "'");
+    if (!d.contains("value")) throw py::value_error("light: missing 'value'");
+    l.value = vec("value", {});
+    l.position = vec("position", {});
+    l.direction = vec("direction", {0, 0, -1});
+    l.radius = num("radius", 0);
+    l.spotSize = num("spot_size", M_PI / 4);
+    l.spotBlend = num("spot_blend", 0);
+    l.angle = num("angle", 0);
+    l.castShadow = d.contains("cast_shadow") ? d["cast_shadow"].cast<bool>() : true;
+    l.object = d.contains("object") ? d["object"].cast<int>() : -1;
+    if (d.contains("environment") && !d["environment"].is_none()) {
+        auto img = checked<float>(d["environment"], "environment", {-1, -1, 3});
+        l.envHeight = int(img.shape(0));
+        l.envWidth = int(img.shape(1));
+        l.env.assign(img.data(), img.data() + img.size());
+    }
+    return l;
+}
+
 }  // namespace
 
 static py::exception<Cancelled>* cancelledType = nullptr;
@@ -289,7 +336,7 @@ void bindSolver(py::module_& m) {
         "solve",
         [](py::object vertices, py::object polygons, py::object reflectance, py::object emission,
            py::object flags, py::object objectIndex, std::vector<std::string> objectNames, py::dict settings,
-           py::object progress) {
+           py::object progress, py::object lights) {
             auto v = checked<float>(vertices, "vertices", {-1, 3});
             auto p = checked<int32_t>(polygons, "polygons", {-1, 4});
             py::ssize_t np = p.shape(0);
@@ -307,6 +354,8 @@ void bindSolver(py::module_& m) {
             in.flags = f.data();
             in.objectIndex = o.data();
             in.objectNames = std::move(objectNames);
+            if (!lights.is_none())
+                for (auto item : py::iter(lights)) in.lights.push_back(parseLight(item));
             Settings s = parseSettings(settings);
             PyProgress prog(progress);
             std::unique_ptr<Solution> sol;
@@ -321,7 +370,7 @@ void bindSolver(py::module_& m) {
         },
         py::arg("vertices"), py::arg("polygons"), py::arg("reflectance"), py::arg("emission"), py::arg("flags"),
         py::arg("object_index"), py::arg("object_names"), py::arg("settings") = py::dict(),
-        py::arg("progress") = py::none());
+        py::arg("progress") = py::none(), py::arg("lights") = py::none());
 
     m.def(
         "write_exr",

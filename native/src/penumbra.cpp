@@ -5,6 +5,7 @@
 #include <cmath>
 #include <type_traits>
 
+#include "bake/lights.h"
 #include "refine/refiner.h"
 #include "solve/error_estimate.h"
 #include "solve/solver.h"
@@ -27,6 +28,8 @@ PENUMBRA_COUNTER(kConvolutionTexels, "convolution_texels");  // of all their tex
 PENUMBRA_COUNTER(kGatherEmitters, "gather_emitters");  // emitting faces the final gather evaluates at every bake point
 PENUMBRA_COUNTER(kIterations, "iterations");           // of the solver, over all refinement passes
 PENUMBRA_COUNTER(kRefinePasses, "refine_passes");
+PENUMBRA_COUNTER(kLights, "lights");          // point, spot and sun lamps and the world, when they give light
+PENUMBRA_COUNTER(kLightRays, "light_rays");   // shadow rays to them for the solve's elements (not the bake's)
 
 class Stopwatch {
 public:
@@ -92,8 +95,41 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     if (!h.clusters().empty()) h.setBuried(rays.buriedFaces(scene, 1e-5 * scene.diagonal));
     rep.seconds["visibility_setup"] = clock.lap();
 
+    // Lamps and the world light the faces before anything is linked: the faces' start radiosity is what
+    // they reflect of it, so the refiner sees them as the sources they are, and its threshold is
+    // relative to that light when no face emits (Refiner's scale).
+    auto lightSet = std::make_shared<LightSet>(scene, &rays, settings.lightRays);
+    LightStats lightStats;
+    if (!lightSet->empty()) {
+        double flux = 0, area = 0;
+        for (size_t i = 0; i < h.numRoots(); ++i) {
+            Element& e = h[i];
+            const ScenePolygon& p = scene.polygons[size_t(e.polygon)];
+            if (!p.receives) continue;
+            Rgb E = lightSet->elementIrradiance(e, p.normal, &lightStats);
+            e.B = p.emission + mul(p.rho, E);
+            if (maxComponent(p.rho) > 0) {
+                flux += e.area * maxComponent(E);
+                area += e.area;
+            }
+        }
+        // A lamp has no exitance to scale the threshold by; it is taken as that of a panel covering
+        // 1/50 of the receiving area and giving it the same light (the Cornell box's lamp covers 1/54):
+        // rooms lit by lamps then refine like rooms lit by panels. Relative to the brightest irradiance
+        // instead, a point lamp in a 2 m box refined every face to min_size (490k links, 40 s).
+        sol->scene_->lightScale = area > 0 ? 50.0 * flux / area : 0.0;
+        counters.add(kLights, scene.lights.size());
+    }
+    if (!lightSet->empty()) rep.seconds["lights"] = clock.lap();
+
     Refiner refiner(h, rays, settings, counters);
     Solver solver(h, settings);
+    std::vector<Rgb> lightE;  // per element, renewed with the leaves
+    auto attachLights = [&] {
+        if (lightSet->empty()) return;
+        lightE = lightSet->leafIrradiance(h, sol->threads_, &lightStats);
+        solver.setLightIrradiance(&lightE);
+    };
     std::vector<Link>& links = sol->links_;
     std::vector<ConvolutionLink>& conv = sol->convLinks_;
     CompleteTextures textures;
@@ -107,6 +143,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     links = refiner.linkAll(progress);
     remapLinks(links, h.canonicalize());
     attachTextures();
+    attachLights();
     rep.seconds["refine"] = clock.lap();
     SolveResult res = solver.solve(links, progress);
     rep.seconds["solve"] = clock.lap();
@@ -120,6 +157,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         rep.seconds["refine"] += clock.lap();
         if (!changed) break;  // no element was split: the complete textures still fit the leaves
         attachTextures();
+        attachLights();
         rep.seconds["refine"] += clock.lap();
         res = solver.solve(links, progress);
         totalIterations += res.iterations;
@@ -127,6 +165,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         rep.seconds["solve"] += clock.lap();
     }
     counters.add(kRefinePasses, size_t(passes));
+    if (!lightSet->empty()) counters.add(kLightRays, lightStats.rays);
     counters.add(kIterations, size_t(totalIterations));
     rep.residual = res.residual;
     rep.converged = res.converged;
@@ -149,7 +188,8 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         solver.directIrradiance(links, shadowed, unoccluded);
         std::vector<Rgb> reflected = conv.empty() ? std::vector<Rgb>{} : textures.reflected(h, conv);
         sol->field_ = RadianceField(h, reflected, conv.empty() ? ConvolutionField{} : ConvolutionField(h, conv),
-                                    shadowed, unoccluded, direct);
+                                    shadowed, unoccluded, direct,
+                                    lightSet->empty() ? nullptr : lightSet, lightE);
         counters.add(kGatherEmitters, direct->emitters());
     } else {
         sol->field_ = conv.empty() ? RadianceField(h)

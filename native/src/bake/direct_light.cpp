@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "geometry/form_factor.h"
+#include "util/sobol.h"
 
 namespace penumbra {
 namespace {
@@ -17,14 +18,6 @@ Vec3 pointOn(const Polygon& g, double s, double t, double& jac) {
     }
     jac = s;
     return g.v[0] * (1 - s) + (g.v[1] * (1 - t) + g.v[2] * t) * s;
-}
-
-// Dimension 0 is the base-2 radical inverse, dimension 1 Sobol's second (Pascal-matrix) dimension.
-double sobol(uint32_t k, int dim) {
-    uint32_t r = 0;
-    for (uint32_t v = 1u << 31; k; k >>= 1, v = dim ? v ^ (v >> 1) : v >> 1)
-        if (k & 1) r ^= v;
-    return r * (1.0 / 4294967296.0);
 }
 
 }  // namespace

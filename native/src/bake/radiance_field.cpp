@@ -47,15 +47,19 @@ RadianceField::RadianceField(const Hierarchy& h, const std::vector<Rgb>& texture
 
 RadianceField::RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv,
                              const std::vector<Rgb>& shadowed, const std::vector<Rgb>& unoccluded,
-                             std::shared_ptr<const DirectLight> direct)
+                             std::shared_ptr<const DirectLight> direct, std::shared_ptr<const LightSet> lights,
+                             const std::vector<Rgb>& lightE)
     : conv_(std::move(conv)), direct_(std::move(direct)) {
     bool ok = shadowed.size() == h.size() && unoccluded.size() == h.size();
-    init(h, textured.size() == h.size() ? &textured : nullptr, ok ? &shadowed : nullptr, ok ? &unoccluded : nullptr);
+    bool lit = ok && lights && !lights->empty() && lightE.size() == h.size();
+    init(h, textured.size() == h.size() ? &textured : nullptr, ok ? &shadowed : nullptr, ok ? &unoccluded : nullptr,
+         lit ? &lightE : nullptr);
     if (!ok) direct_.reset();
+    if (lit) lights_ = std::move(lights);
 }
 
 void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured, const std::vector<Rgb>* shadowed,
-                         const std::vector<Rgb>* unoccluded) {
+                         const std::vector<Rgb>* unoccluded, const std::vector<Rgb>* lightE) {
     const Scene& sc = h.scene();
     scene_ = &sc;
     diagonal_ = sc.diagonal;
@@ -121,6 +125,7 @@ void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured, c
         l.value = (e.B - p.emission) / M_PI;
         if (textured) l.value = vmax(Rgb{}, l.value - (*textured)[i] / M_PI);
         l.indirect = shadowed ? vmax(Rgb{}, l.value - mul(p.rho, (*shadowed)[i]) / M_PI) : l.value;
+        if (lightE) l.indirect = vmax(Rgb{}, l.value - mul(p.rho, (*shadowed)[i] + (*lightE)[i]) / M_PI);
         // No linked light from any emitter at all (a face under a box, a sealed room): nothing is
         // known to be visible, so nothing is.
         l.vis = Rgb{};
@@ -211,6 +216,7 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
         double len = length(toward), nudge = 1e-5 * diagonal_;
         Vec3 q = len > nudge ? p + toward * (nudge / len) : p;
         out += mul(mul(sp.rho, vis), direct_->irradiance(q, sp.normal, poly)) * (1.0 / M_PI);
+        if (lights_) out += mul(sp.rho, lights_->irradiance(q, sp.normal)) * (1.0 / M_PI);
     }
     return out;
 }

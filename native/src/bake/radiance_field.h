@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "bake/direct_light.h"
+#include "bake/lights.h"
 #include "geometry/box_tree.h"
 #include "hierarchy/element.h"
 #include "solve/convolution_link.h"
@@ -26,9 +27,12 @@ public:
     // hold of the emitters' light; it is taken out of them and `direct` evaluates it at every point
     // instead: the exact unoccluded form factors there, times the visibility blended from the leaves
     // (shadowed / unoccluded), or with its own rays when it casts them. `textured` may be empty.
+    // Likewise `lightE` (per element, LightSet::leafIrradiance) is what the leaves hold of the lamps' and
+    // world's light, taken out of them and evaluated by `lights` at every point instead.
     RadianceField(const Hierarchy& h, const std::vector<Rgb>& textured, ConvolutionField conv,
                   const std::vector<Rgb>& shadowed, const std::vector<Rgb>& unoccluded,
-                  std::shared_ptr<const DirectLight> direct);
+                  std::shared_ptr<const DirectLight> direct, std::shared_ptr<const LightSet> lights = nullptr,
+                  const std::vector<Rgb>& lightE = {});
     // p in the scene's recentred coordinates; n the geometric normal of the surface at p.
     Rgb radiance(const Vec3& p, const Vec3& n) const;
 
@@ -46,7 +50,7 @@ private:
         Bounds support;
     };
     void init(const Hierarchy& h, const std::vector<Rgb>* textured, const std::vector<Rgb>* shadowed,
-              const std::vector<Rgb>* unoccluded);
+              const std::vector<Rgb>* unoccluded, const std::vector<Rgb>* lightE = nullptr);
     // The blend of the leaves of one convolution group and (surface >= 0) one connected surface;
     // with `vis`, also the blend of their visibilities.
     Rgb smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis = nullptr) const;
@@ -57,6 +61,7 @@ private:
 
     ConvolutionField conv_;
     std::shared_ptr<const DirectLight> direct_;
+    std::shared_ptr<const LightSet> lights_;  // null without lamps or world
     const Scene* scene_ = nullptr;
     std::vector<Leaf> leaves_;
     std::vector<int> located_;        // receiving polygons, in polygonBoxes_ order

@@ -85,6 +85,8 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
     }
     double scale = sc.maxEmission;
     if (area > 0 && flux > 0) scale = std::min(scale, 200.0 * flux / area);
+    // Lamps and the world are no faces: their scale is the brightest mean irradiance they give a face.
+    scale = std::max(scale, sc.lightScale);
     threshold_ = s.epsilon * scale;
     double minEdge = s.minSize * sc.diagonal;
     minArea_ = minEdge * minEdge;

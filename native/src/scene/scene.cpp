@@ -199,9 +199,36 @@ Scene buildScene(const SceneInput& in) {
                          (scene.degenerateSkipped
                               ? " (" + std::to_string(scene.degenerateSkipped) + " zero-area face(s) skipped)"
                               : std::string()));
-    if (!(scene.maxEmission > 0))
-        throw InputError("nothing emits light: add an area light or an emissive material "
-                         "(point, spot and sun lights are not supported yet)");
+    for (const Light& l : in.lights) {
+        auto name = [&] {
+            return l.object >= 0 && size_t(l.object) < in.objectNames.size() ? "'" + in.objectNames[size_t(l.object)] + "'"
+                                                                            : "#" + std::to_string(l.object);
+        };
+        auto bad = [&](const std::string& what) { throw InputError("light " + name() + ": " + what); };
+        if (!isFinite(l.position) || !isFinite(l.direction) || !isFinite(l.value))
+            bad("position, direction or value is NaN or infinite");
+        if (l.value.x < 0 || l.value.y < 0 || l.value.z < 0) bad("negative power or colour");
+        if (!(l.radius >= 0) || !std::isfinite(l.radius)) bad("radius must be >= 0");
+        if (!(l.angle >= 0 && l.angle <= M_PI)) bad("sun angle must be in [0, 180] degrees");
+        if (!(l.spotSize > 0 && l.spotSize <= M_PI) && l.type == LightType::Spot) bad("spot size must be in (0, 180] degrees");
+        if (!(l.spotBlend >= 0 && l.spotBlend <= 1)) bad("spot blend must be in [0, 1]");
+        if ((l.type == LightType::Spot || l.type == LightType::Sun) && !(length(l.direction) > 0))
+            bad("zero direction");
+        if (!l.env.empty()) {
+            if (l.type != LightType::World) bad("only the world takes an environment image");
+            if (l.envWidth <= 0 || l.envHeight <= 0 || l.env.size() != size_t(l.envWidth) * size_t(l.envHeight) * 3)
+                bad("environment image size does not match its pixels");
+            for (float x : l.env)
+                if (!std::isfinite(x) || x < 0) bad("environment image has negative or non-finite pixels");
+        }
+        if (!(maxComponent(l.value) > 0)) continue;
+        Light c = l;
+        c.position = l.position - scene.offset;
+        if (length(c.direction) > 0) c.direction = normalize(c.direction);
+        scene.lights.push_back(c);
+    }
+    if (!(scene.maxEmission > 0) && scene.lights.empty())
+        throw InputError("nothing emits light: add a light, an emissive material or a world colour");
     scene.diagonal = length(scene.bounds.diagonal());
     return scene;
 }

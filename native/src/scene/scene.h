@@ -15,6 +15,31 @@ enum PolygonFlags : uint8_t {
     kLightOnly = 2,  // a lamp: emits, but neither receives, reflects nor blocks
 };
 
+// A Blender lamp that is not a polygon, in Cycles' units (blender-facts.md section 1). Point and spot:
+// `value` is the power P (W, times the colour), radiant intensity P/(4 pi); with a radius r Cycles
+// draws a disk of radius r facing the shaded point, so E = P cos / (4 pi (d^2 + r^2)). Sun: `value`
+// is the strength (W/m^2 at normal incidence for angle 0). World: `value` is the background's
+// radiance (colour x strength), the same from every direction.
+enum class LightType : uint8_t { Point = 0, Spot = 1, Sun = 2, World = 3 };
+
+struct Light {
+    LightType type = LightType::Point;
+    Vec3 position;          // point, spot
+    Vec3 direction{0, 0, -1};  // spot axis and sun: the way the light travels (the lamp's local -Z)
+    Rgb value;
+    double radius = 0;      // point, spot: the disk Cycles samples (shadow_soft_size)
+    double spotSize = 0;    // spot: full cone angle, radians
+    double spotBlend = 0;   // spot: [0, 1]
+    double angle = 0;       // sun: angular diameter, radians
+    bool castShadow = true;
+    int object = -1;        // index into objectNames, for messages
+    // World only: an equirectangular environment (Cycles' Environment Texture, default mapping), linear
+    // RGB rows from the bottom (v = 0, straight down) up; `value` multiplies it (the Background strength).
+    // Empty: the uniform `value`.
+    int envWidth = 0, envHeight = 0;
+    std::vector<float> env;
+};
+
 // Borrowed views of the caller's arrays (row-major). Nothing is copied until buildScene.
 struct SceneInput {
     const float* vertices = nullptr;      // numVertices x 3
@@ -26,6 +51,7 @@ struct SceneInput {
     const uint8_t* flags = nullptr;       // numPolygons, PolygonFlags
     const int32_t* objectIndex = nullptr; // numPolygons, index into objectNames
     std::vector<std::string> objectNames;
+    std::vector<Light> lights;  // world coordinates; copied
 };
 
 struct ScenePolygon {
@@ -55,13 +81,18 @@ struct Scene {
     Bounds bounds;          // of the recentred scene
     double diagonal = 0;
     double maxEmission = 0; // brightest emitted radiosity over channels, the scale of all thresholds
+    std::vector<Light> lights;  // recentred; only those that give light
+    // The lights' scale for the refiner's threshold, as maxEmission is the emitters': 50 times the mean
+    // irradiance they give the reflecting faces (max channel; penumbra.cpp says why). Set by solve() once
+    // it is known; 0 without lights.
+    double lightScale = 0;
     size_t degenerateSkipped = 0;
     std::vector<std::string> warnings;
 };
 
 // Validates and converts. Throws InputError naming the object for NaN/Inf coordinates, indices out
-// of range, albedo outside [0, 1), negative or non-finite emission, an empty scene or one where
-// nothing emits. Zero-area faces are skipped (and counted); non-planar or non-convex quads are split
+// of range, albedo outside [0, 1), negative or non-finite emission or light values, an empty scene
+// or one where nothing emits (no emitting face and no light). Zero-area faces are skipped (and counted); non-planar or non-convex quads are split
 // into two triangles.
 Scene buildScene(const SceneInput& in);
 

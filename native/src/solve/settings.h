@@ -58,6 +58,10 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        point to fixed Sobol' points (exact in full light and umbra, but a detailed shadow such as a         \
        lattice shade needs hundreds: 4.8 % RMS with 64, 1.6 % with 256, against 0.9 % from the links). */  \
     X(int, gatherRays, "gather_rays", 0, '[', 0, 256, ']')                                                 \
+    /* Point, spot and sun lamps and the world: sample points per light and bake point for the soft        \
+       shadow of a lamp with a size (radius, sun angle) and the world's occlusion; up to 32 per element     \
+       for the light the solve carries on. A hard-shadowed lamp (radius 0) always takes one ray. */         \
+    X(int, lightRays, "light_rays", 256, '[', 1, 1024, ']')                                                 \
     /* Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,         \
        instead of being killed by the system (or, for face pairs, running for hours). */                    \
     /* quadtree elements, ~400 bytes each at the peak (canonicalize) */                                     \

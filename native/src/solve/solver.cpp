@@ -79,6 +79,7 @@ Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected)
     int fc = h_.firstChild(ei);
     if (fc < 0) {
         const ScenePolygon& p = h_.scene().polygons[e.polygon];
+        if (lightE_) total += (*lightE_)[size_t(ei)];
         Rgb refl = mul(p.rho, total);
         B = p.emission + refl;
         change += e.area * maxComponent(Rgb{std::fabs(B.x - e.B.x), std::fabs(B.y - e.B.y),

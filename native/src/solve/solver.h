@@ -31,6 +31,10 @@ public:
         textures_ = textures;
     }
 
+    // Per element: irradiance from the scene's lamps and world (LightSet::leafIrradiance), reflected by
+    // the leaves like gathered light; null or empty without lights. Must outlive the solve.
+    void setLightIrradiance(const std::vector<Rgb>* e) { lightE_ = e && !e->empty() ? e : nullptr; }
+
     // The irradiance each element's links bring straight from the emitters (a gather with every
     // radiosity set to its emission, pushed down to the leaves), as linked (`shadowed`) and with every
     // link's visibility taken as 1 (`unoccluded`), for the final gather: it replaces the first by its
@@ -57,6 +61,7 @@ private:
     bool unoccluded_ = false;  // gather with every link's visibility taken as 1
     const std::vector<ConvolutionLink>* convLinks_ = nullptr;
     const CompleteTextures* textures_ = nullptr;
+    const std::vector<Rgb>* lightE_ = nullptr;
 };
 
 }  // namespace penumbra

@@ -1,0 +1,225 @@
+"""Point, spot and sun lights and a uniform world over a Lambert plane, through the add-on, against the analytic
+irradiance in Cycles' units (blender-facts section 1), and Blender's startup scene in one call.
+
+Nothing but the plane reflects, so each texel's baked radiance is exactly rho*E/pi.
+"""
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+import helpers
+
+ALBEDO = (0.5, 0.6, 0.7)
+RES = 48
+HALF = 1.5
+
+
+def _bake_plane(penumbra, scene, **settings):
+    plane = bpy.data.objects["Plane"]
+    report = penumbra.bake(scene, resolution=RES, targets={"LIGHTMAP"}, epsilon=0.002, **settings)
+    assert "Plane" in report["objects_baked"]
+    px = helpers.image_pixels(bpy.data.images[report["outputs"]["Plane"]["image"]])
+    mask, pos = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
+    # Off the plane's rim, where a texel centre's neighbourhood leaves the plane.
+    inner = mask & (np.abs(pos[..., 0]) < HALF - 0.05) & (np.abs(pos[..., 1]) < HALF - 0.05)
+    return report, px[inner][:, :3], pos[inner]
+
+
+def _scene(empty_scene):
+    empty_scene.world = None
+    helpers.quad_object("Plane", HALF, HALF, material=helpers.diffuse_material("Lambert", ALBEDO))
+
+
+def _lamp(scene, kind, location, rotation=(0, 0, 0), **props):
+    light = bpy.data.lights.new(kind.title(), kind)
+    for k, v in props.items():
+        setattr(light, k, v)
+    ob = bpy.data.objects.new(kind.title(), light)
+    ob.location = location
+    ob.rotation_euler = rotation
+    scene.collection.objects.link(ob)
+    bpy.context.view_layer.update()
+    return ob
+
+
+def _compare(got, irradiance, where=None):
+    expected = np.asarray(ALBEDO)[None, :] * irradiance / math.pi
+    if where is None:
+        where = np.ones(len(got), bool)
+    rel = np.abs(got[where] / expected[where] - 1)
+    print(f"max rel. error {rel.max():.5f}, mean {rel.mean():.6f} over {where.sum()} texels")
+    assert where.sum() > 50
+    assert rel.max() < 0.01
+    return rel.max()
+
+
+@pytest.mark.parametrize("radius", [0.0, 0.3])
+def test_point_light(empty_scene, penumbra, radius):
+    _scene(empty_scene)
+    colour = np.array([1.0, 0.8, 0.6])
+    ob = _lamp(empty_scene, "POINT", (0.2, -0.1, 1.2), energy=150.0, color=colour, shadow_soft_size=radius)
+    report, got, pos = _bake_plane(penumbra, empty_scene)
+    assert report["export"]["point_lights"] == 1 and not report["warnings"]
+    d = np.asarray(ob.location)[None, :] - pos
+    d2 = (d ** 2).sum(axis=1)
+    E = 150.0 * (d[:, 2] / np.sqrt(d2) / (4 * math.pi * (d2 + radius ** 2)))[:, None] * colour[None, :]
+    _compare(got, E)
+
+
+def test_spot_inside_the_cone_and_in_the_blend(empty_scene, penumbra):
+    _scene(empty_scene)
+    size, blend, h = math.radians(100), 0.4, 1.0
+    ob = _lamp(empty_scene, "SPOT", (0.0, 0.0, h), energy=200.0, spot_size=size, spot_blend=blend,
+               shadow_soft_size=0.0)
+    _, got, pos = _bake_plane(penumbra, empty_scene)
+    d = np.asarray(ob.location)[None, :] - pos
+    dist = np.linalg.norm(d, axis=1)
+    c = d[:, 2] / dist                               # the receiver's cosine and the angle off the spot's axis
+    edge = math.cos(size / 2)
+    smooth = (1 - edge) * blend
+    t = np.clip((c - edge) / smooth, 0, 1)
+    att = np.where(c > edge, c * t * t * (3 - 2 * t), 0.0)
+    E = (200.0 / (4 * math.pi) * c / dist ** 2 * att)[:, None] * np.ones(3)[None, :]
+    inside = c > edge + smooth
+    in_blend = (c > edge + 0.15 * smooth) & ~inside
+    assert inside.sum() > 50 and in_blend.sum() > 50
+    _compare(got, E, inside)
+    _compare(got, E, in_blend)
+    outside = c < edge - 0.02
+    assert outside.sum() > 50 and np.abs(got[outside]).max() == 0
+
+
+@pytest.mark.parametrize("tilt", [0.0, 40.0])
+@pytest.mark.parametrize("angle", [0.0, 20.0])
+def test_sun(empty_scene, penumbra, tilt, angle):
+    _scene(empty_scene)
+    colour = np.array([1.0, 0.9, 0.7])
+    ob = _lamp(empty_scene, "SUN", (0, 0, 3), rotation=(math.radians(tilt), 0, 0), energy=4.0, color=colour,
+               angle=math.radians(angle))
+    _, got, pos = _bake_plane(penumbra, empty_scene)
+    t = math.tan(math.radians(angle) / 2)
+    f = 2 * (math.sqrt(1 + t * t) - 1) / (t * t) if angle else 1.0
+    cos = np.array(ob.matrix_world)[2, 2]            # -(local -Z) . up
+    E = np.tile(4.0 * f * cos * colour, (len(got), 1))
+    _compare(got, E)
+
+
+def test_uniform_world_on_an_open_plane(empty_scene, penumbra):
+    _scene(empty_scene)
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.3, 0.5, 0.9, 1)
+    bg.inputs["Strength"].default_value = 2.0
+    empty_scene.world = world
+    report, got, pos = _bake_plane(penumbra, empty_scene)
+    assert report["export"]["world"] == 1 and not report["skipped"]
+    E = np.tile(math.pi * 2.0 * np.array([0.3, 0.5, 0.9]), (len(got), 1))
+    _compare(got, E)
+
+
+def test_cast_shadow_off_lets_light_through(empty_scene, penumbra):
+    _scene(empty_scene)
+    card = helpers.quad_object("Card", 0.5, 0.5, z=0.6, material=helpers.diffuse_material("Black", (0, 0, 0)))
+    card.hide_render = False
+    ob = _lamp(empty_scene, "POINT", (0, 0, 1.2), energy=100.0, shadow_soft_size=0.0)
+    _, got, pos = _bake_plane(penumbra, empty_scene)
+    under = np.hypot(pos[:, 0], pos[:, 1]) < 0.3
+    assert under.sum() > 10 and got[under].max() == 0
+    ob.data.cycles.cast_shadow = False
+    _, got, pos = _bake_plane(penumbra, empty_scene)
+    d = np.asarray(ob.location)[None, :] - pos
+    d2 = (d ** 2).sum(axis=1)
+    E = (100.0 * d[:, 2] / np.sqrt(d2) / (4 * math.pi * d2))[:, None] * np.ones(3)[None, :]
+    _compare(got, E, under)
+
+
+def test_world_from_a_texture_is_skipped_by_name(empty_scene, penumbra):
+    _scene(empty_scene)
+    _lamp(empty_scene, "SUN", (0, 0, 3), energy=2.0)
+    world = bpy.data.worlds.new("Textured")
+    world.use_nodes = True
+    nt = world.node_tree
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    empty_scene.world = world
+    report, _, _ = _bake_plane(penumbra, empty_scene)
+    assert any(x["name"] == "Textured" and "texture or sky" in x["reason"] for x in report["skipped"])
+
+
+def test_startup_scene_bakes_in_one_call(penumbra):
+    """Blender's own startup file: a cube, a 1000 W point light of radius 0.1 and a grey world."""
+    bpy.ops.wm.read_homefile()
+    scene = bpy.context.scene
+    report = penumbra.bake(scene, resolution=32)
+    assert report["objects_baked"] == ["Cube"]
+    assert report["warnings"] == [] and report["skipped"] == []
+    assert report["export"]["point_lights"] == 1 and report["export"]["world"] == 1
+    cube = bpy.data.objects["Cube"]
+    px = helpers.image_pixels(bpy.data.images[report["outputs"]["Cube"]["image"]])
+    mask, pos = helpers.texel_world_positions(cube, cube["penumbra"]["uv_map"], 32, 32)
+    # The top face (z = 1) sees the whole sky and the lamp, and no other face: analytic.
+    top = mask & (np.abs(pos[..., 2] - 1) < 1e-4) & (np.abs(pos[..., 0]) < 0.9) & (np.abs(pos[..., 1]) < 0.9)
+    assert top.sum() > 20
+    lamp = bpy.data.objects["Light"]
+    p = pos[top]
+    d = np.array(lamp.matrix_world)[:3, 3][None, :] - p
+    d2 = (d ** 2).sum(axis=1)
+    r = lamp.data.shadow_soft_size
+    E = lamp.data.energy * d[:, 2] / np.sqrt(d2) / (4 * math.pi * (d2 + r * r))
+    bg = scene.world.node_tree.nodes["Background"]
+    sky = np.array(bg.inputs["Color"].default_value[:3]) * bg.inputs["Strength"].default_value
+    rho = np.array(bpy.data.materials["Material"].node_tree.nodes["Principled BSDF"].inputs["Base Color"]
+                   .default_value[:3])
+    expected = rho[None, :] * (E[:, None] + math.pi * sky[None, :]) / math.pi
+    rel = np.abs(px[top][:, :3] / expected - 1)
+    print(f"startup cube top: max rel. error {rel.max():.5f}")
+    assert rel.max() < 0.01
+    bpy.ops.wm.read_homefile(use_empty=True)
+
+
+def _environment_world(scene, pixels, strength):
+    h, w, _ = pixels.shape
+    img = bpy.data.images.new("Env", w, h, alpha=False, float_buffer=True)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = pixels
+    img.pixels.foreach_set(rgba.ravel())
+    img.update()
+    world = bpy.data.worlds.new("Env")
+    world.use_nodes = True
+    nt = world.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = img
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    nt.nodes["Background"].inputs["Strength"].default_value = strength
+    scene.world = world
+
+
+def test_environment_image_sky_and_ground(empty_scene, penumbra):
+    """An equirectangular map whose upper half (the sky) is one colour: an upward plane sees only that."""
+    _scene(empty_scene)
+    sky, ground = np.array([0.2, 0.4, 0.9]), np.array([0.9, 0.3, 0.1])
+    px = np.empty((16, 32, 3), np.float32)
+    px[:8], px[8:] = ground, sky                    # rows from the bottom: v < 0.5 looks down
+    _environment_world(empty_scene, px, 1.5)
+    report, got, _ = _bake_plane(penumbra, empty_scene)
+    assert report["export"]["world"] == 1 and not report["skipped"]
+    _compare(got, np.tile(math.pi * 1.5 * sky, (len(got), 1)))
+
+
+def test_environment_image_azimuth_follows_cycles(empty_scene, penumbra):
+    """Cycles' mapping puts +Y at u = 0.25 and -Y at u = 0.75: a plane facing +Y sees only u < 0.5."""
+    empty_scene.world = None
+    plane = helpers.quad_object("Plane", HALF, HALF, material=helpers.diffuse_material("Lambert", ALBEDO))
+    plane.rotation_euler = (-math.pi / 2, 0, 0)     # its normal +Z turned to +Y
+    bpy.context.view_layer.update()
+    left, right = np.array([0.3, 0.6, 0.2]), np.array([1.0, 0.1, 0.1])
+    px = np.empty((16, 32, 3), np.float32)
+    px[:, :16], px[:, 16:] = left, right
+    _environment_world(empty_scene, px, 1.0)
+    report = penumbra.bake(empty_scene, resolution=RES, targets={"LIGHTMAP"}, epsilon=0.002)
+    got = helpers.image_pixels(bpy.data.images[report["outputs"]["Plane"]["image"]])
+    mask, _ = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
+    _compare(got[mask][:, :3], np.tile(math.pi * left, (int(mask.sum()), 1)))
