@@ -122,6 +122,18 @@ TEST(Furnace, OneLampInAClosedBoxConservesEnergy) {
         for (size_t i = 0; i < h.size(); ++i)
             if (h[i].isLeaf()) reflected += h[i].area * (h[i].B.x - h.scene().polygons[h[i].polygon].emission.x);
         std::printf("clustering %d: %.5f\n", int(clustering), reflected / (rho / (1 - rho) * emitted));
+        {   // power received per receiving polygon group, and per source polygon group (floor 0, ceiling 1..48, walls 49..52)
+            auto group = [&](int poly) { return poly == 0 ? 0 : poly <= 48 ? 1 : poly - 47; };
+            double recv[8][8] = {};
+            for (const Link& l : sol->links()) {
+                if (isClusterNode(l.receiver) || isClusterNode(l.source)) continue;
+                int rg = group(h[size_t(l.receiver)].polygon), sg = group(h[size_t(l.source)].polygon);
+                recv[rg][sg] += h[size_t(l.source)].B.x * l.F * h[size_t(l.receiver)].area;
+            }
+            double sent[8] = {};
+            for (size_t i = 0; i < h.size(); ++i) if (h[i].isLeaf()) sent[group(h[i].polygon)] += h[i].area * h[i].B.x;
+            for (int b = 0; b < 6; ++b) { double r = 0; for (int a = 0; a < 6; ++a) r += recv[a][b]; std::printf("   source %d: sent %.4f received %.4f ratio %.4f\n", b, sent[b], r, r / sent[b]); }
+        }
         EXPECT_NEAR(reflected / (rho / (1 - rho) * emitted), 1.0, 0.01) << "clustering " << clustering;
     }
 }
