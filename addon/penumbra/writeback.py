@@ -31,6 +31,11 @@ class Transaction:
     def __init__(self):
         self._undo = []
         self._commit = []
+        self._discard = []
+
+    def discard(self, datablock):
+        """Remove `datablock` once every commit step has run, in one batch with the others."""
+        self._discard.append(datablock)
 
     def on_rollback(self, fn):
         self._undo.append(fn)
@@ -41,6 +46,9 @@ class Transaction:
     def commit(self):
         for fn in self._commit:
             fn()
+        if self._discard:
+            bpy.data.batch_remove(self._discard)
+            self._discard.clear()
         self._undo.clear()
 
     def rollback(self):
@@ -409,8 +417,13 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             new = bpy.data.images[img_name]
             if old_name and old_name in bpy.data.images:
                 o = bpy.data.images[old_name]
-                o.user_remap(new)
-                bpy.data.images.remove(o)
+                # Remapping and removing each walk every data-block of the file, so doing both for every
+                # object made a re-bake quadratic: remap only an image something uses besides its fake user,
+                # and remove the old images together after the last swap.
+                if o.users > int(o.use_fake_user):
+                    o.user_remap(new)
+                o.name = old_name + ".penumbra-old"
+                tx.discard(o)
             # Renaming onto a taken name renames the other data-block in Blender 3.4; a user's image keeps
             # its name and ours keeps the suffixed one.
             want = final if final not in bpy.data.images else old_name
