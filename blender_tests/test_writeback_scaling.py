@@ -115,3 +115,24 @@ def test_same_bake_as_through_bpy_ops(empty_scene, penumbra, monkeypatch):
         for a, b in zip(new[n], old[n]):
             np.testing.assert_array_equal(a, b)
         assert new[n][0].max() > 0
+
+
+def test_re_bake_replaces_used_and_unused_lightmaps(empty_scene, penumbra):
+    """The commit remaps only lightmaps something uses and removes the old ones in one batch: a user's
+    material that shows a lightmap follows it to the new bake, and no old image is left behind."""
+    _cubes(3)
+    penumbra.bake(empty_scene, **FAST)
+    mat = bpy.data.materials.new("ShowsLightmap")
+    mat.use_nodes = True
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    node.image = bpy.data.images["Penumbra_Cube001"]
+    bpy.data.objects["Cube001"].data.materials.append(mat)
+    first = {n: bpy.data.images[n].as_pointer() for n in ("Penumbra_Cube000", "Penumbra_Cube001")}
+    rep = penumbra.bake(empty_scene, **{**FAST, "resolution": 24})
+    names = sorted(i.name for i in bpy.data.images)
+    assert names == sorted("Penumbra_" + n for n in rep["objects_baked"])
+    for n, ptr in first.items():
+        img = bpy.data.images[n]
+        assert img.as_pointer() != ptr and tuple(img.size) == (24, 24)
+    assert node.image == bpy.data.images["Penumbra_Cube001"]
+    assert bpy.data.images["Penumbra_Cube000"].users == 1          # its fake user only
