@@ -10,16 +10,15 @@ report's times['write_back'] is the figure: everything after the solve that puts
 that the solve does not dominate the run; it has no effect on the write-back's work, which depends on the
 objects and texels only.
 
---profile N bakes N objects under cProfile once more and prints the 30 most expensive calls by cumulative
-time. --rebake bakes every size a second time over the first (every image and attribute replaced at the
-commit) and reports that write-back too. Sizes already in --json under the same --label are replaced; other labels are kept, so a "before" and
-an "after" run end up side by side in one plot.
+--profile N bakes N objects under cProfile once more and prints the most expensive calls, by cumulative and
+by own time. --rebake bakes every size a second time over the first (every image and attribute replaced at
+the commit) and reports that write-back too. Sizes already in --json under the same --label are replaced;
+other labels are kept, so a "before" and an "after" run end up side by side in one plot.
 """
 import argparse
 import json
 import os
 import sys
-import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
