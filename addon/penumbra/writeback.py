@@ -31,6 +31,11 @@ class Transaction:
     def __init__(self):
         self._undo = []
         self._commit = []
+        self._discard = []
+
+    def discard(self, datablock):
+        """Remove `datablock` once every commit step has run, in one batch with the others."""
+        self._discard.append(datablock)
 
     def on_rollback(self, fn):
         self._undo.append(fn)
@@ -41,6 +46,9 @@ class Transaction:
     def commit(self):
         for fn in self._commit:
             fn()
+        if self._discard:
+            bpy.data.batch_remove(self._discard)
+            self._discard.clear()
         self._undo.clear()
 
     def rollback(self):
@@ -74,13 +82,15 @@ class _SelectionState:
 
     def __init__(self, view_layer):
         self.vl = view_layer
-        self.selected = [o.name for o in view_layer.objects if o.select_get(view_layer=view_layer)]
+        self.selected = {o.name for o in view_layer.objects if o.select_get(view_layer=view_layer)}
         self.active = view_layer.objects.active.name if view_layer.objects.active else None
 
     def restore(self):
         objs = self.vl.objects
         for o in objs:
-            o.select_set(o.name in self.selected, view_layer=self.vl)
+            want = o.name in self.selected
+            if o.select_get(view_layer=self.vl) != want:
+                o.select_set(want, view_layer=self.vl)
         objs.active = objs.get(self.active) if self.active else None
 
 
@@ -101,8 +111,41 @@ def _restore_element_flags(me, flags):
             coll.foreach_set(attr, a)
 
 
-def prepare_uv(ob, scene, view_layer, uv_setting, tx):
-    """Return the lightmap UV map's name for `ob`, unwrapping PenumbraLightmap unless the user named one."""
+def _call_op(idname, **props):
+    """Run an operator without the view-layer update that bpy.ops does before and after every call. Each of
+    those updates re-evaluates the whole scene once anything is tagged (a selection change is enough), so five
+    operators per object made the unwrap of N objects cost N^2; the depsgraph is brought up to date once,
+    after the last object. Falls back to bpy.ops where Blender's private entry point is missing."""
+    try:
+        from _bpy import ops as native_ops
+        call = native_ops.call
+    except (ImportError, AttributeError):
+        module, name = idname.split(".")
+        return getattr(getattr(bpy.ops, module), name)(**props)
+    return call(idname, None, props)
+
+
+def _unwrap(ob, scene, view_layer):
+    """Smart-project every face of `ob` into its active UV map (edit mode, with `ob` alone selected)."""
+    ob.select_set(True, view_layer=view_layer)
+    view_layer.objects.active = ob
+    try:
+        with bpy.context.temp_override(scene=scene, view_layer=view_layer, active_object=ob, object=ob):
+            _call_op("object.mode_set", mode="EDIT")
+            try:
+                _call_op("mesh.reveal", select=False)
+                _call_op("mesh.select_all", action="SELECT")
+                # Smart project keeps whole coplanar regions in one island (blender-facts §4), so bilinear
+                # lookups do not show seams at every face.
+                _call_op("uv.smart_project", angle_limit=math.radians(66.0), island_margin=0.02,
+                         area_weight=0.0, correct_aspect=True, scale_to_bounds=False)
+            finally:
+                _call_op("object.mode_set", mode="OBJECT")
+    finally:
+        ob.select_set(False, view_layer=view_layer)
+
+
+def _prepare_uv(ob, scene, view_layer, uv_setting, tx):
     me = ob.data
     if uv_setting:
         if uv_setting not in me.uv_layers:
@@ -140,31 +183,36 @@ def prepare_uv(ob, scene, view_layer, uv_setting, tx):
 
     layers.active = layer
     flags = _element_flags(me)
-    sel = _SelectionState(view_layer)
     try:
-        for o in view_layer.objects:
-            o.select_set(False, view_layer=view_layer)
-        ob.select_set(True, view_layer=view_layer)
-        view_layer.objects.active = ob
-        with bpy.context.temp_override(scene=scene, view_layer=view_layer, active_object=ob, object=ob):
-            bpy.ops.object.mode_set(mode="EDIT")
-            try:
-                bpy.ops.mesh.reveal(select=False)
-                bpy.ops.mesh.select_all(action="SELECT")
-                # Smart project keeps whole coplanar regions in one island (blender-facts §4), so bilinear
-                # lookups do not show seams at every face.
-                bpy.ops.uv.smart_project(angle_limit=math.radians(66.0), island_margin=0.02, area_weight=0.0,
-                                         correct_aspect=True, scale_to_bounds=False)
-            finally:
-                bpy.ops.object.mode_set(mode="OBJECT")
+        _unwrap(ob, scene, view_layer)
     finally:
-        sel.restore()
         _restore_element_flags(me, flags)
         if old_active and old_active in layers:
             layers.active = layers[old_active]
         if old_render and old_render in layers:
             layers[old_render].active_render = True
     return UV_NAME, created
+
+
+def prepare_uvs(objects, scene, view_layer, uv_setting, tx):
+    """{name: (lightmap UV map's name, whether this bake created it)} for `objects`, unwrapping
+    PenumbraLightmap unless the user named a UV map. The selection is cleared once for all of them and
+    restored once at the end: doing it per object walked every object of the view layer per object."""
+    out = {}
+    if uv_setting:
+        for ob in objects:
+            out[ob.name] = _prepare_uv(ob, scene, view_layer, uv_setting, tx)
+        return out
+    sel = _SelectionState(view_layer)
+    try:
+        for o in view_layer.objects:
+            if o.select_get(view_layer=view_layer):
+                o.select_set(False, view_layer=view_layer)
+        for ob in objects:
+            out[ob.name] = _prepare_uv(ob, scene, view_layer, uv_setting, tx)
+    finally:
+        sel.restore()
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- sampling
@@ -369,8 +417,13 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             new = bpy.data.images[img_name]
             if old_name and old_name in bpy.data.images:
                 o = bpy.data.images[old_name]
-                o.user_remap(new)
-                bpy.data.images.remove(o)
+                # Remapping and removing each walk every data-block of the file, so doing both for every
+                # object made a re-bake quadratic: remap only an image something uses besides its fake user,
+                # and remove the old images together after the last swap.
+                if o.users > int(o.use_fake_user):
+                    o.user_remap(new)
+                o.name = old_name + ".penumbra-old"
+                tx.discard(o)
             # Renaming onto a taken name renames the other data-block in Blender 3.4; a user's image keeps
             # its name and ours keeps the suffixed one.
             want = final if final not in bpy.data.images else old_name
@@ -527,10 +580,8 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             # files went).
             for d in reversed(missing):
                 tx.on_rollback(lambda d=d: os.path.isdir(d) and not os.listdir(d) and os.rmdir(d))
-        uv = {}
-        for name in object_names:
-            ob = bpy.data.objects[name]
-            uv[name] = prepare_uv(ob, scene, view_layer, settings.get("uv_map"), tx)
+        uv = prepare_uvs([bpy.data.objects[n] for n in object_names], scene, view_layer,
+                         settings.get("uv_map"), tx)
         if bpy.context.scene == scene:
             dg = bpy.context.evaluated_depsgraph_get()
         else:

@@ -1,0 +1,138 @@
+"""The write-back's cost per object does not grow with the scene: no whole-scene update per object, and the
+same results as the operator path it replaced."""
+import bpy
+import numpy as np
+
+import helpers
+
+FAST = {"resolution": 16, "margin": 2, "epsilon": 0.01, "targets": {"LIGHTMAP", "COLOR_ATTRIBUTE"}}
+
+
+def _cubes(n):
+    h = 0.25
+    verts = [(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    side = int(np.ceil(np.sqrt(n)))
+    for i in range(n):
+        me = bpy.data.meshes.new(f"Cube{i:03d}")
+        me.from_pydata(verts, [], faces)
+        ob = bpy.data.objects.new(f"Cube{i:03d}", me)
+        ob.location = (i % side - side / 2, i // side - side / 2, 0.0)
+        bpy.context.scene.collection.objects.link(ob)
+    helpers.area_light("Lamp", "SQUARE", float(side), energy=100.0 * n, location=(0, 0, 3))
+    bpy.context.view_layer.update()
+
+
+def _updates_during_write_back(penumbra, scene):
+    """Depsgraph updates that evaluated something, counted from the write-back's first progress call on."""
+    state = {"in_write_back": False, "updates": 0}
+
+    def progress(stage, frac):
+        if stage == "write-back":
+            state["in_write_back"] = True
+        return True
+
+    def on_update(scene, depsgraph):
+        if state["in_write_back"]:
+            state["updates"] += 1
+
+    bpy.app.handlers.depsgraph_update_post.append(on_update)
+    try:
+        rep = penumbra.bake(scene, progress=progress, **FAST)
+    finally:
+        bpy.app.handlers.depsgraph_update_post.remove(on_update)
+    return rep, state["updates"]
+
+
+def test_scene_updates_do_not_grow_with_the_object_count(empty_scene, penumbra):
+    _cubes(3)
+    rep, few = _updates_during_write_back(penumbra, empty_scene)
+    assert len(rep["objects_baked"]) == 3
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    _cubes(15)
+    rep, many = _updates_during_write_back(penumbra, scene)
+    assert len(rep["objects_baked"]) == 15
+    # Each update re-evaluates the whole scene; a count that grew with the objects made the write-back of
+    # N objects cost N^2 (five operators per object, each wrapped in two updates).
+    assert many <= few + 1, (few, many)
+    assert many <= 4, many
+
+
+def test_selection_and_active_object_survive(empty_scene, penumbra):
+    _cubes(6)
+    vl = bpy.context.view_layer
+    for o in vl.objects:
+        o.select_set(o.name in ("Cube001", "Cube004", "Lamp"))
+    vl.objects.active = bpy.data.objects["Cube004"]
+    penumbra.bake(empty_scene, **FAST)
+    assert sorted(o.name for o in vl.objects if o.select_get()) == ["Cube001", "Cube004", "Lamp"]
+    assert vl.objects.active.name == "Cube004"
+    assert bpy.context.mode == "OBJECT"
+
+
+def _results(names):
+    out = {}
+    for n in names:
+        ob = bpy.data.objects[n]
+        img = bpy.data.images["Penumbra_" + n]
+        px = np.empty(len(img.pixels), np.float32)
+        img.pixels.foreach_get(px)
+        ca = ob.data.attributes["Penumbra"]
+        col = np.empty(len(ca.data) * 4, np.float32)
+        ca.data.foreach_get("color", col)
+        uv = ob.data.uv_layers["PenumbraLightmap"]
+        uvs = np.empty(len(uv.data) * 2, np.float32)
+        uv.data.foreach_get("uv", uvs)
+        out[n] = (px, col, uvs)
+    return out
+
+
+def test_same_bake_as_through_bpy_ops(empty_scene, penumbra, monkeypatch):
+    """The unwrap now skips the scene updates bpy.ops wraps every operator in; it must give the very UVs,
+    lightmaps and colours the bpy.ops path gives."""
+    from penumbra import writeback
+    _cubes(4)
+    ob = bpy.data.objects["Cube002"]
+    ob.rotation_euler = (0.3, 0.2, 0.1)
+    ob.scale = (1.0, 2.0, 0.5)
+    rep = penumbra.bake(empty_scene, **FAST)
+    names = rep["objects_baked"]
+    new = _results(names)
+
+    def through_bpy_ops(idname, **props):
+        module, name = idname.split(".")
+        return getattr(getattr(bpy.ops, module), name)(**props)
+    calls = []
+    monkeypatch.setattr(writeback, "_call_op", lambda idname, **p: calls.append(idname) or
+                        through_bpy_ops(idname, **p))
+    penumbra.clear(empty_scene)
+    rep2 = penumbra.bake(empty_scene, **FAST)
+    assert rep2["objects_baked"] == names
+    assert len(calls) == 5 * len(names)
+    old = _results(names)
+    for n in names:
+        for a, b in zip(new[n], old[n]):
+            np.testing.assert_array_equal(a, b)
+        assert new[n][0].max() > 0
+
+
+def test_re_bake_replaces_used_and_unused_lightmaps(empty_scene, penumbra):
+    """The commit remaps only lightmaps something uses and removes the old ones in one batch: a user's
+    material that shows a lightmap follows it to the new bake, and no old image is left behind."""
+    _cubes(3)
+    penumbra.bake(empty_scene, **FAST)
+    mat = bpy.data.materials.new("ShowsLightmap")
+    mat.use_nodes = True
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    node.image = bpy.data.images["Penumbra_Cube001"]
+    bpy.data.objects["Cube001"].data.materials.append(mat)
+    first = {n: bpy.data.images[n].as_pointer() for n in ("Penumbra_Cube000", "Penumbra_Cube001")}
+    rep = penumbra.bake(empty_scene, **{**FAST, "resolution": 24})
+    names = sorted(i.name for i in bpy.data.images)
+    assert names == sorted("Penumbra_" + n for n in rep["objects_baked"])
+    for n, ptr in first.items():
+        img = bpy.data.images[n]
+        assert img.as_pointer() != ptr and tuple(img.size) == (24, 24)
+    assert node.image == bpy.data.images["Penumbra_Cube001"]
+    assert bpy.data.images["Penumbra_Cube000"].users == 1          # its fake user only
