@@ -35,6 +35,7 @@ REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 import cornell_box  # noqa: E402
 import scenes  # noqa: E402
+from addon_env import enable_addon  # noqa: E402
 
 BOUNCES = 32
 # (epsilon, min_size): the default is the third; finer settings need a smaller min_size to take effect.
@@ -62,16 +63,6 @@ def parse_args():
     ap.add_argument("--hybrid", default="{}", help="JSON of extra solver settings for the hybrid series, "
                                                   "e.g. '{\"e_max\": 4}'")
     return ap.parse_args(argv)
-
-
-def enable_addon():
-    import addon_utils
-    addon_dir = os.environ.get("PENUMBRA_ADDON_DIR", os.path.join(REPO, "build", "addon"))
-    sys.path.insert(0, addon_dir)
-    if addon_utils.enable("penumbra", default_set=True) is None:
-        raise SystemExit("bench: the penumbra add-on failed to enable")
-    import penumbra
-    return penumbra
 
 
 def log(*a):
@@ -357,7 +348,7 @@ def plot(r, path):
 
 def main():
     args = parse_args()
-    penumbra = enable_addon()
+    penumbra = enable_addon("bench")
     os.makedirs(args.out, exist_ok=True)
     names = args.scenes.split(",")
     results = []

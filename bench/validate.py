@@ -46,6 +46,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 import validation_scenes  # noqa: E402
+from addon_env import enable_addon  # noqa: E402
 
 BOUNCES = 32
 DARK = 1e-4
@@ -70,16 +71,6 @@ def parse_args():
 
 def log(*a):
     print(*a, file=sys.stderr, flush=True)
-
-
-def enable_addon():
-    import addon_utils
-    addon_dir = os.environ.get("PENUMBRA_ADDON_DIR", os.path.join(REPO, "build", "addon"))
-    sys.path.insert(0, addon_dir)
-    if addon_utils.enable("penumbra", default_set=True) is None:
-        raise SystemExit("validate: the penumbra add-on failed to enable")
-    import penumbra
-    return penumbra
 
 
 def prepare(name):
@@ -335,7 +326,7 @@ def build_info():
 
 def main():
     args = parse_args()
-    penumbra = enable_addon()
+    penumbra = enable_addon("validate")
     info = build_info()
     try:
         import subprocess

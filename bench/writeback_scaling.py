@@ -22,6 +22,8 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
+sys.path.insert(0, os.path.join(REPO, "examples"))
+from addon_env import enable_addon  # noqa: E402
 TARGET_OBJECTS, TARGET_SECONDS = 1000, 1.0
 
 
@@ -39,17 +41,6 @@ def parse_args():
     args = ap.parse_args(argv)
     args.sizes = sorted({int(s) for s in args.sizes.split(",") if s.strip()})
     return args
-
-
-def enable(build):
-    import addon_utils
-    if not os.path.isdir(os.path.join(build, "penumbra")):
-        raise SystemExit(f"writeback_scaling: no penumbra/ in {build}; run bash scripts/build.sh")
-    sys.path.insert(0, build)
-    if addon_utils.enable("penumbra", default_set=True) is None:
-        raise SystemExit("writeback_scaling: the add-on failed to enable")
-    import penumbra
-    return penumbra
 
 
 def build_scene(n):
@@ -117,7 +108,7 @@ def plot(rows_by_label, path):
 
 def main():
     args = parse_args()
-    penumbra = enable(args.build)
+    penumbra = enable_addon("writeback_scaling", args.build)
     rows = []
     for n in args.sizes:
         r = run(penumbra, n, args.resolution, args.rebake)

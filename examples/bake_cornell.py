@@ -18,6 +18,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 import cornell_box  # noqa: E402
+from addon_env import enable_addon  # noqa: E402
 
 
 def parse_args():
@@ -30,18 +31,6 @@ def parse_args():
     ap.add_argument("--render-size", type=int, default=400)
     ap.add_argument("--samples", type=int, default=16)
     return ap.parse_args(argv)
-
-
-def enable_addon():
-    import addon_utils
-    addon_dir = os.environ.get("PENUMBRA_ADDON_DIR", os.path.join(REPO, "build", "addon"))
-    if not os.path.isdir(os.path.join(addon_dir, "penumbra")):
-        raise SystemExit(f"bake_cornell: no penumbra/ in {addon_dir}; run bash scripts/build.sh first")
-    sys.path.insert(0, addon_dir)
-    if addon_utils.enable("penumbra", default_set=True) is None:
-        raise SystemExit("bake_cornell: the penumbra add-on failed to enable (see the error above)")
-    import penumbra
-    return penumbra
 
 
 def render_png(scene, path, size, samples):
@@ -63,7 +52,7 @@ def render_png(scene, path, size, samples):
 
 def main():
     args = parse_args()
-    penumbra = enable_addon()
+    penumbra = enable_addon("bake_cornell")
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
     cornell_box.clear_scene()

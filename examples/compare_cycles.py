@@ -16,8 +16,8 @@ import sys
 import bpy
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
+from addon_env import enable_addon  # noqa: E402
 
 
 def parse_args():
@@ -34,21 +34,9 @@ def parse_args():
     return ap.parse_args(argv)
 
 
-def enable_addon():
-    import addon_utils
-    addon_dir = os.environ.get("PENUMBRA_ADDON_DIR", os.path.join(REPO, "build", "addon"))
-    if not os.path.isdir(os.path.join(addon_dir, "penumbra")):
-        raise SystemExit(f"compare_cycles: no penumbra/ in {addon_dir}; run bash scripts/build.sh first")
-    sys.path.insert(0, addon_dir)
-    if addon_utils.enable("penumbra", default_set=True) is None:
-        raise SystemExit("compare_cycles: the penumbra add-on failed to enable (see the error above)")
-    import penumbra
-    return penumbra
-
-
 def main():
     args = parse_args()
-    penumbra = enable_addon()
+    penumbra = enable_addon("compare_cycles")
     from penumbra import compare
     if args.scene_script:
         import scenes
