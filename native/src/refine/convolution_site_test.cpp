@@ -39,18 +39,16 @@ TestScene floorUnderLamp(Card card) {
     return t;
 }
 
-struct Sites {
-    Scene scene;
-    std::unique_ptr<Hierarchy> h;
-    std::unique_ptr<RayCaster> rays;
-    Counters counters;
+Settings unclustered(Settings s) {
+    s.clustering = false;
+    return s;
+}
+
+struct Sites : testing::SolverParts {
     std::unique_ptr<ConvolutionSites> sites;
-    explicit Sites(const TestScene& t, Settings s = {}) : scene(buildScene(t.input())) {
+    explicit Sites(const TestScene& t, const Settings& s = {}) : SolverParts(t, unclustered(s)) {
         setFftCostConstant(1e-9);  // t_max must not depend on this machine's FFTW
-        s.clustering = false;
-        h = std::make_unique<Hierarchy>(scene, s.maxElements, s.clustering);
-        rays = std::make_unique<RayCaster>(scene);
-        sites = std::make_unique<ConvolutionSites>(*h, *rays, s, counters);
+        sites = std::make_unique<ConvolutionSites>(*h, *rays, unclustered(s), counters);
     }
     size_t count(const char* name) const { return counters.values().at(name); }
     size_t refused() const {

@@ -154,7 +154,6 @@ double Refiner::linkError(const Link& l) const {
 }
 
 double Refiner::sourceDeviationError(const Link& l) const {
-
     // A source whose radiosity is far from uniform, not seen through a clear shaft: rays spread by its
     // area see a share of its area, not of its light, and the hidden part may be the bright one (a
     // ceiling over the back of a lamp mounted 5 mm under it, seen from the floor past the lamp). Such

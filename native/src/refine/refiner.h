@@ -51,10 +51,10 @@ private:
     // Visibility of a cluster link from rays between faces of both ends (V may be 0); false when no
     // face of one end is turned toward the other.
     bool estimateCluster(int r, int s, const Bounds& rb, const Bounds& sb, Link& l);
-    // Points on the faces of a node that look toward `toward`, spread by projected area; false when
-    // none does.
     // Whether some face of a cluster (any element counts) has part of the box `other` in front of it.
     bool facesToward(int node, const Bounds& other, bool receiver) const;
+    // Points on the faces of a node that look toward `toward`, spread by projected area; false when
+    // none does.
     bool sampleNode(int node, const Vec3& toward, bool receiver, uint64_t seed, int n, Vec3* pts) const;
     std::vector<int> children(int node, bool receiver);
     bool receives(int node) const;

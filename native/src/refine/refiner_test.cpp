@@ -36,15 +36,9 @@ Settings standardOnly(double epsilon) {
     return s;
 }
 
-struct Refined {
-    Scene scene;
-    std::unique_ptr<Hierarchy> h;
-    std::unique_ptr<RayCaster> rays;
-    Counters counters;
+struct Refined : testing::SolverParts {
     std::vector<Link> links;
-    Refined(const TestScene& t, const Settings& s) : scene(buildScene(t.input())) {
-        h = std::make_unique<Hierarchy>(scene, s.maxElements, s.clustering);
-        rays = std::make_unique<RayCaster>(scene);
+    Refined(const TestScene& t, const Settings& s) : SolverParts(t, s) {
         Refiner refiner(*h, *rays, s, counters);
         links = refiner.linkAll(nullptr);
     }

@@ -21,6 +21,11 @@ int TestScene::quad(Vec3 a, Vec3 b, Vec3 c, Vec3 d, Rgb rho, Rgb emit, uint8_t f
     return int(flags.size()) - 1;
 }
 
+SolverParts::SolverParts(const TestScene& t, const Settings& s) : scene(buildScene(t.input())) {
+    h = std::make_unique<Hierarchy>(scene, s.maxElements, s.clustering);
+    rays = std::make_unique<RayCaster>(scene);
+}
+
 int TestScene::triangle(Vec3 a, Vec3 b, Vec3 c, Rgb rho, Rgb emit, uint8_t flag, int object) {
     int i = quad(a, b, c, c, rho, emit, flag, object);
     polygons.back() = -1;

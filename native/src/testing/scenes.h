@@ -1,9 +1,14 @@
 // Small scenes built in code for the unit tests: they own their arrays and hand out a SceneInput.
 #pragma once
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "hierarchy/element.h"
 #include "scene/scene.h"
+#include "solve/settings.h"
+#include "util/counters.h"
+#include "visibility/ray_caster.h"
 
 namespace penumbra {
 class Solution;
@@ -25,6 +30,16 @@ struct TestScene {
     // Moves and scales every vertex: p -> p * scale + offset (in double, rounded once to float).
     void transform(double scale, Vec3 offset);
     SceneInput input() const;
+};
+
+// The scene built from a TestScene with its hierarchy (clustered as `s` says) and ray caster: what the
+// refiner and the convolution sites work on, for the unit tests of either.
+struct SolverParts {
+    Scene scene;
+    std::unique_ptr<Hierarchy> h;
+    std::unique_ptr<RayCaster> rays;
+    Counters counters;
+    SolverParts(const TestScene& t, const Settings& s);
 };
 
 // Closed axis-aligned box [0,s]^3 whose six faces look inward, each split into n x n quads.
