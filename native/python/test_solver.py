@@ -166,3 +166,25 @@ def test_wall_behind_a_bookcase_one_centimetre_away_stays_dark():
     assert sol.radiance(behind, np.tile(toward, (len(behind), 1))).mean() < 0.12 * open_wall
     case_back = behind - np.array([0, 0.0101, 0], np.float32)
     assert sol.radiance(case_back, np.tile(-toward, (len(behind), 1))).mean() < 0.12 * open_wall
+
+
+@pytest.mark.parametrize("plane", [100.0, 1000.0])
+def test_small_lamp_over_a_kilometre_plane_is_exact_near_the_lamp(plane):
+    # Lengths tied to the scene's size once moved each bake point 1e-5 of the diagonal toward its
+    # polygon's centre: 1.4 cm on a 1 km plane, 2 % of the light 1 m from a lamp 1 m up. Nothing else
+    # reflects here, so every point's light is the lamp's alone: Lambert for the panel, the inverse
+    # square law for the point lamp.
+    pts = np.array([[x, y, 0] for x, y in ((0, 0), (0.5, 0), (1.0, 0.3), (3.0, -1.0))], np.float32)
+    nrm = np.tile(np.array([0, 0, 1], np.float32), (len(pts), 1))
+    args = plane_and_lamp(lamp_size=0.2, height=1.0, plane=plane)
+    got = _native.solve(*args).radiance(pts, nrm)[:, 0]
+    lamp = args[0][4:8].astype(np.float64)
+    want = [0.5 * 10.0 * lambert_irradiance_factor(p.astype(np.float64), np.array([0, 0, 1.0]), lamp) / math.pi
+            for p in pts]
+    np.testing.assert_allclose(got, want, rtol=0.005)
+    v, p, r, e, f, o, _ = args
+    sol = _native.solve(v[:4].copy(), p[:1].copy(), r[:1].copy(), e[:1].copy(), f[:1].copy(), o[:1].copy(),
+                        ["Plane"], lights=[dict(type="POINT", value=(100.0,) * 3, position=(0, 0, 1.0))])
+    d2 = (pts.astype(np.float64) ** 2).sum(axis=1) + 1.0
+    want = 0.5 * 100.0 / (4 * math.pi * d2) / np.sqrt(d2) / math.pi
+    np.testing.assert_allclose(sol.radiance(pts, nrm)[:, 0], want, rtol=0.005)

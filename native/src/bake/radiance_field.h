@@ -69,6 +69,7 @@ private:
     BoxTree polygonBoxes_;
     BoxTree supports_;  // over leaves_[i].support
     double diagonal_ = 0;
+    double nudge_ = 0;  // how far a bake point is moved off its polygon's edge (radiance)
 };
 
 }  // namespace penumbra

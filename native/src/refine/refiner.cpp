@@ -14,6 +14,11 @@ namespace penumbra {
 namespace {
 
 PENUMBRA_COUNTER(kRays, "rays");                 // visibility rays cast
+// A partly seen link whose receiver is at min_size gets kRaysPerShare rays per threshold's worth of
+// its error, in rounds of 256, at most kMaxBatches rounds (estimateVisibility).
+constexpr double kRaysPerShare = 16;
+constexpr int kMaxBatches = 16;
+
 PENUMBRA_COUNTER(kShaftsClear, "shafts_clear");  // links found fully visible by shaft culling, no rays cast
 
 // Deterministic per-link random numbers: the sample pattern of a link depends only on the identity
@@ -251,7 +256,7 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
     return fmax > 0;
 }
 
-void Refiner::estimateVisibility(int ri, int si, Link& l) {
+void Refiner::estimateVisibility(int ri, int si, Link& l, int batches) {
     const Element& r = h_[ri];
     const Element& s = h_[si];
     const Scene& sc = h_.scene();
@@ -268,52 +273,68 @@ void Refiner::estimateVisibility(int ri, int si, Link& l) {
         l.F = l.Fmean;
         return;
     }
-    int m = strata_, n = m * m;
+    // batches > 0: that many rounds of 16 x 16 rays, the sample pattern carried on from round to round.
+    int m = batches > 0 ? 16 : strata_, n = std::min(m * m, 256);
+    int rounds = std::max(1, batches);
     Rng rng(r.key ^ (s.key * 0x9E3779B97F4A7C15ull));
     Vec3 from[256], to[256];
-    n = std::min(n, 256);
-    // Stratified on both ends, with the source strata visited in a shuffled order so that rays do
-    // not all run parallel.
-    int perm[256];
-    for (int i = 0; i < n; ++i) perm[i] = i;
-    for (int i = n - 1; i > 0; --i) std::swap(perm[i], perm[int(rng.next() * (i + 1))]);
     // A source that has been cut into parts with different radiosities (as a receiver) is sampled by
     // its light rather than its area: V is then the visible share of what it sends, which is what the
     // link carries. Sixteen rays spread by area over a ceiling miss a lamp mounted under it that hides
     // a fifth of the ceiling's light; spread by light, they find it.
     bool byLight = hasSettledChildren(si) && s.Bdev > 0 && maxComponent(s.B) > 0;
-    for (int i = 0; i < n; ++i) {
-        int a = i, b = perm[i];
-        from[i] = r.pointAt((a % m + rng.next()) / m, (a / m + rng.next()) / m) + nr;
-        to[i] = (byLight ? pointByLight(si, (i + rng.next()) / n, rng.next(), rng.next())
-                         : s.pointAt((b % m + rng.next()) / m, (b / m + rng.next()) / m)) + ns;
-    }
-    // Only rays whose ends each lie in front of the other's surface count: Fmean already leaves out
-    // the part of the source behind the receiver's plane, and a ray to it is blocked by the
-    // receiver's own body (a floor element reaching under a sphere or a box standing on it). Counted,
-    // such rays cut that light a second time: objects resting on a floor came out 5-10 % dark.
-    char vis[256];
-    rays_.visiblePairs(from, to, n, vis);
-    counters_.add(kRays, size_t(n));
     const Vec3 ur = sc.polygons[r.polygon].normal, us = sc.polygons[s.polygon].normal;
     // Cosines below this are rounding noise of points lying in the other's plane (a block's side
     // meeting the floor), which must not decide whether a ray counts.
     constexpr double kGrazing = 1e-4;
     int counted = 0, seen = 0, open = 0;
-    for (int i = 0; i < n; ++i) {
-        Vec3 d = to[i] - from[i];
-        double len = length(d);
-        open += vis[i];
-        if (!(len > 0) || dot(ur, d) <= kGrazing * len || -dot(us, d) <= kGrazing * len) continue;
-        ++counted;
-        seen += vis[i];
+    // With batches, each ray counts by the point-to-point kernel cos cos / r^2 of its ends, so V is the
+    // visible share of the form factor rather than of the areas: they differ where the source is
+    // large beside its receiver (a whole lamp linked to a small element under a lattice shade).
+    double wSeen = 0, wAll = 0;
+    for (int round = 0; round < rounds; ++round) {
+        // Stratified on both ends, with the source strata visited in a shuffled order so that rays
+        // do not all run parallel.
+        int perm[256];
+        for (int i = 0; i < n; ++i) perm[i] = i;
+        for (int i = n - 1; i > 0; --i) std::swap(perm[i], perm[int(rng.next() * (i + 1))]);
+        for (int i = 0; i < n; ++i) {
+            int a = i, b = perm[i];
+            from[i] = r.pointAt((a % m + rng.next()) / m, (a / m + rng.next()) / m) + nr;
+            to[i] = (byLight ? pointByLight(si, (i + rng.next()) / n, rng.next(), rng.next())
+                             : s.pointAt((b % m + rng.next()) / m, (b / m + rng.next()) / m)) + ns;
+        }
+        // Only rays whose ends each lie in front of the other's surface count: Fmean already leaves
+        // out the part of the source behind the receiver's plane, and a ray to it is blocked by the
+        // receiver's own body (a floor element reaching under a sphere or a box standing on it).
+        // Counted, such rays cut that light a second time: objects resting on a floor came out 5-10 %
+        // dark.
+        char vis[256];
+        rays_.visiblePairs(from, to, n, vis);
+        counters_.add(kRays, size_t(n));
+        for (int i = 0; i < n; ++i) {
+            Vec3 d = to[i] - from[i];
+            double len = length(d);
+            open += vis[i];
+            if (!(len > 0) || dot(ur, d) <= kGrazing * len || -dot(us, d) <= kGrazing * len) continue;
+            ++counted;
+            seen += vis[i];
+            double len2 = len * len, w = dot(ur, d) * -dot(us, d) / (len2 * len2);
+            wAll += w;
+            wSeen += vis[i] ? w : 0.0;
+        }
     }
-    l.V = float(counted > 0 ? double(seen) / counted : double(open) / n);
+    if (batches > 0 && wAll > 0)
+        l.V = float(wSeen / wAll);
+    else
+        l.V = float(counted > 0 ? double(seen) / counted : double(open) / (double(n) * rounds));
     l.F = l.Fmean * l.V;
 }
 
 double Refiner::gradientError(const Link& l) const {
     if (isClusterNode(l.source) || isClusterNode(l.receiver) || !hasSettledChildren(l.source)) return 0;
+    // The kernel varies across the source by about its size over its distance; times how far its
+    // parts' radiosities stray from the one value the link uses.
     // The kernel varies across the source by about its size over its distance; times how far its
     // parts' radiosities stray from the one value the link uses.
     const Element& s = h_[l.source];
@@ -559,6 +580,18 @@ void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
     }
     // Rays are spent only once the unoccluded transfer is accurate enough to be linked.
     estimateVisibility(ri, si, l);
+    if (l.partial() && linkError(l) > threshold_ && !canR) {
+        // The receiver is as small as it may get and holds one value whatever the source's parts do:
+        // splitting the source only shares the same error among more links (a lamp cut to min_size
+        // for every receiver in its penumbra: a third of a furnished room's links). What the split
+        // would buy, a finer estimate of the visible share, as many rays on the one link buy for less:
+        // the split made about error/threshold parts of 16 rays each.
+        double ratio = linkError(l) / threshold_;
+        int batches = int(std::clamp(std::ceil(kRaysPerShare * ratio / 256), 1.0, double(kMaxBatches)));
+        estimateVisibility(ri, si, l, batches);
+        keep(l, out);
+        return;
+    }
     if (linkError(l) <= threshold_ || !l.partial() || (!canR && !canS)) {
         // Hidden transfers are kept too (F = 0): the final gather's visibility is the linked light
         // over the unoccluded light, and a hidden transfer must count in the second.
@@ -683,7 +716,9 @@ std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* pr
                     // A link whose source's parts now differ in light is estimated again (by light,
                     // estimateVisibility) even where its error alone would keep it.
                     bool deviates = sourceDeviationError(l) > threshold_ || gradientError(l) > threshold_;
-                    bool splittable = l.V > 0 && (canSplit(l.receiver) || (l.partial() && canSplit(l.source)) || deviates);
+                    // A partly seen element source is never split for a receiver at min_size
+                    // (refineElements); a cluster source still opens.
+                    bool splittable = l.V > 0 && (canSplit(l.receiver) || (l.partial() && isClusterNode(l.source)) || deviates);
                     if ((linkError(l) > threshold_ || deviates) && splittable) {
                         anyChange = true;
                         refine(l.receiver, l.source, out[c]);

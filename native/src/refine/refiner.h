@@ -62,7 +62,9 @@ private:
     double receiverRho(int node) const;
     // Unoccluded estimate. False when no light can pass (back-facing or coplanar).
     bool estimateUnoccluded(int r, int s, Link& l);
-    void estimateVisibility(int r, int s, Link& l);
+    // batches > 0: that many rounds of 256 rays instead of the visibility_rays setting's, and V the
+    // visible share of the form factor (each ray weighted by its ends' cos cos / r^2).
+    void estimateVisibility(int r, int s, Link& l, int batches = 0);
     bool canSplit(int e) const;
     // A point of element e's leaves, chosen by their share of its light B * area (u in [0, 1)).
     Vec3 pointByLight(int e, double u, double s, double t) const;

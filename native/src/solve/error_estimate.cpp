@@ -31,9 +31,14 @@ ErrorEstimate estimateError(const Hierarchy& h, const std::vector<Link>& links, 
             double spread = rho * R * l.Fspread * rms12;
             e2 = spread * spread;
             if (l.partial()) {
+                // A source larger than its receiver casts a penumbra about as wide as the source
+                // across it, so visibility varies over the receiver by about their size ratio: the
+                // same figure as the source's parts of the receiver's size, linked apart, would give
+                // (the refiner links a receiver at min_size to a whole partly seen source).
                 double v = double(l.V) * (1 - double(l.V));
                 double shadow = rho * B * l.Fmean;
-                e2 += shadow * shadow * v * (0.25 + 1 / n);
+                double share = std::min(1.0, h[l.receiver].area / src.area);
+                e2 += shadow * shadow * v * (0.25 + 1 / n) * share;
             }
         }
         if (isClusterNode(l.receiver))
