@@ -408,14 +408,14 @@ std::vector<std::vector<Vec3>> crossSection(const std::vector<BlockerTriangle>& 
     return loops;
 }
 
-// Of a closed surface, the triangles facing the source centre. A ray through a convex solid crosses one face
-// turned toward O and one turned away; with both in the slabs it is counted twice, once in each slab it
-// crosses, and the product of the slab maps darkens the penumbra. The faces turned toward O project onto the
-// solid's whole silhouette from O, so nothing is lost. A triangle counts as closed when each edge is run the
-// other way by another blocker triangle (a consistently wound closed surface) or lies on the receiver (a box
-// open at the floor); open surfaces (a card, a panel) and inconsistently wound ones keep both sides.
+// Of a closed surface, the faces the whole source sees from behind. A ray from a source point through a convex
+// solid enters by a face turned toward that point and leaves by one turned away; with both in the slabs it is
+// counted in each slab it crosses, and the product of the slab maps darkens the penumbra. A face turned away
+// from every source vertex is never where a ray enters, so it can go. A triangle counts as closed when each edge
+// is run the other way by another blocker triangle (a consistently wound closed surface) or lies on the
+// receiver (a box open at the floor); open surfaces (a card, a panel) and inconsistently wound ones stay.
 std::vector<int> facingTheSource(const std::vector<BlockerTriangle>& blockers, const std::vector<int>& kept,
-                                 const ConvolutionFrame& f, double zContact) {
+                                 const ConvolutionFrame& f, const std::vector<Vec3>& source, double zContact) {
     using Key = std::tuple<double, double, double>;
     auto key = [](const Vec3& v) { return Key{v.x, v.y, v.z}; };
     std::map<std::pair<Key, Key>, int> directed;
@@ -433,17 +433,20 @@ std::vector<int> facingTheSource(const std::vector<BlockerTriangle>& blockers, c
             closed = (reverse != directed.end() && reverse->second > 0) ||
                      (f.depth(a) >= zContact && f.depth(b) >= zContact);
         }
-        if (closed && dot(cross(t[1] - t[0], t[2] - t[0]), f.O - t[0]) < 0) continue;
+        const Vec3 n = cross(t[1] - t[0], t[2] - t[0]);
+        bool behind = closed;
+        for (size_t k = 0; k < source.size() && behind; ++k) behind = dot(n, source[k] - t[0]) < 0;
+        if (behind) continue;
         out.push_back(idx);
     }
     return out;
 }
 
-void chooseContactSlices(const std::vector<BlockerTriangle>& blockers, const std::vector<int>& allKept,
-                         const ConvolutionSettings& s, ConvolutionPlan& P) {
+void chooseContactSlices(const SourceDesc& src, const std::vector<BlockerTriangle>& blockers,
+                         const std::vector<int>& allKept, const ConvolutionSettings& s, ConvolutionPlan& P) {
     const ConvolutionFrame& f = P.frame;
     const double touch = s.depthTolerance * (P.receiverDepth.hi - P.sourceDepth.lo);
-    const std::vector<int> kept = facingTheSource(blockers, allKept, f, P.receiverDepth.lo - touch);
+    const std::vector<int> kept = facingTheSource(blockers, allKept, f, src.polygon, P.receiverDepth.lo - touch);
     const double z_r = P.window.z_r;
     const double zTop = P.blockerDepth.lo, zBottom = P.blockerDepth.hi;
     // Penumbra scale of a blocker point at depth z for the source centre and the receiver plane.
@@ -541,7 +544,7 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
     // a box resting on a floor must not fall on either side of the test with the rounding of its coordinates.
     const double touch = s.depthTolerance * (P.receiverDepth.hi - P.sourceDepth.lo);
     if (s.contactSlabs && P.blockerDepth.hi >= P.receiverDepth.lo - touch && P.blockerDepth.lo < P.blockerDepth.hi)
-        chooseContactSlices(blockers, kept, s, P);
+        chooseContactSlices(src, blockers, kept, s, P);
     else
         chooseSlices(blockers, kept, s, P);
     refuse(padding(s, P));
