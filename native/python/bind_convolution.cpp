@@ -76,7 +76,7 @@ py::tuple vec(const Vec3& v) { return py::make_tuple(v.x, v.y, v.z); }
 py::dict softShadowTexture(const py::object& source, const py::object& receiver, const py::object& blockers,
                            const py::object& resolution, const py::object& emissionImage, double eMax, int nMax,
                            const std::string& rasterizer, int supersample, const std::string& direction,
-                           int minResolution, int maxResolution, double depthTolerance) {
+                           int minResolution, int maxResolution, double depthTolerance, bool contactSlabs) {
     SourceDesc src;
     src.polygon = points(asDoubles(source, "source", {-1, 3}));
     if (src.polygon.size() < 3) throw py::value_error("source must have at least 3 vertices");
@@ -111,6 +111,7 @@ py::dict softShadowTexture(const py::object& source, const py::object& receiver,
     s.minResolution = minResolution;
     s.maxResolution = maxResolution;
     s.depthTolerance = depthTolerance;
+    s.contactSlabs = contactSlabs;
 
     ConvolutionPlan plan;
     SoftShadowTexture T;
@@ -146,6 +147,7 @@ py::dict softShadowTexture(const py::object& source, const py::object& receiver,
     for (const SubBlocker& b : plan.slices) {
         py::dict d;
         d["triangles"] = b.triangles.size();
+        d["pieces"] = b.pieces.size();
         d["depth"] = py::make_tuple(b.depth.lo, b.depth.hi);
         d["alpha"] = py::make_tuple(b.alphaLo, b.alphaStar, b.alphaHi);
         d["error"] = b.error;
@@ -166,6 +168,7 @@ py::dict softShadowTexture(const py::object& source, const py::object& receiver,
     r["frame"] = frame;
     r["window"] = window;
     r["slices"] = slices;
+    r["contact"] = plan.contact;
     return r;
 }
 
@@ -245,7 +248,7 @@ void bindConvolution(py::module_& m) {
           py::arg("resolution") = py::none(), py::arg("emission_image") = py::none(), py::arg("e_max") = 2.0,
           py::arg("n_max") = 8, py::arg("rasterizer") = "auto", py::arg("supersample") = 4,
           py::arg("direction") = "auto", py::arg("min_resolution") = 16, py::arg("max_resolution") = 512,
-          py::arg("depth_tolerance") = 1e-3,
+          py::arg("depth_tolerance") = 1e-3, py::arg("contact_slabs") = true,
           R"doc(Soft shadow texture by convolution (Soler & Sillion 1998); see docs/convolution.md.
 
 source: (k, 3) planar polygon, k >= 3, any winding; it emits towards the receiver.
@@ -257,10 +260,12 @@ emission_image: optional (h, w) non-negative image over the source's own (s, t) 
   bounding rectangle in that frame).
 e_max: target error E_rr in texels; n_max: most sub-blockers (depth slabs).
 rasterizer: "auto" (= "span"), "span" or "osmesa".
+contact_slabs: a blocker reaching the receiver is cut into contact sub-blockers (clipped slabs, the
+  contact slab with the blocker's cross-section); False plans it like any other blocker.
 Returns a dict: visibility (n, n) float32 indexed [t, s]; matrix (4, 4) float64 with
 M @ [x, y, z, 1] = [s q, t q, 0, q]; error (E_rr, texels); visibility_error (predicted max |dV|);
 alpha_min; sub_blockers; resolution; fft_size; times {raster_ms, fft_ms, rest_ms}; frame; window;
-slices. Raises ValueError for bad input or a configuration the convolution cannot handle.)doc");
+slices; contact. Raises ValueError for bad input or a configuration the convolution cannot handle.)doc");
     m.def("lookup", &lookup, py::arg("result"), py::arg("points"),
           "Visibility at 3-D points (m, 3) from a soft_shadow_texture result: bilinear, by central projection "
           "from the source centre, clamped to the edge texels; NaN for points not in front of the source centre.");

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <stdexcept>
@@ -318,6 +319,189 @@ void chooseSlices(const std::vector<BlockerTriangle>& blockers, const std::vecto
     }
 }
 
+// Contact sub-blockers (issue 12). A blocker standing on the receiver casts a penumbra whose width falls to
+// zero at the contact, so no single kernel fits it and the narrowest penumbra gives no texel size. The
+// blocker is cut at depth planes (triangles clipped, not assigned whole) into slabs of penumbra scale
+// [0, a1], [a1, a1 r], [a1 r, a1 r^2], ...: the contact slab's penumbra spread is e_max texels (below that
+// a penumbra is not resolved anyway: the paper's delta = alpha_min L_S floor), and every other slab's
+// spread is e_max halves of its own narrowest penumbra, the unit E_rr has elsewhere. The slab at the
+// contact also gets the blocker's cross-section (the cap): its map is then the solid's shadow, and the
+// receiver under the object is dark whatever the product of the wall strips above it lets through.
+
+// The part of t between the depth planes zlo and zhi (Sutherland-Hodgman on two half-spaces).
+std::vector<Vec3> clipToDepth(const BlockerTriangle& t, const ConvolutionFrame& f, double zlo, double zhi) {
+    std::vector<Vec3> poly(t.begin(), t.end()), next;
+    for (int side = 0; side < 2; ++side) {
+        next.clear();
+        auto inside = [&](const Vec3& v) { return side == 0 ? f.depth(v) >= zlo : f.depth(v) <= zhi; };
+        const double zc = side == 0 ? zlo : zhi;
+        for (size_t i = 0; i < poly.size(); ++i) {
+            const Vec3& a = poly[i];
+            const Vec3& b = poly[(i + 1) % poly.size()];
+            bool ia = inside(a), ib = inside(b);
+            if (ia) next.push_back(a);
+            if (ia != ib) {
+                double za = f.depth(a), zb = f.depth(b);
+                next.push_back(a + (b - a) * ((zc - za) / (zb - za)));
+            }
+        }
+        poly.swap(next);
+        if (poly.size() < 3) return {};
+    }
+    return poly;
+}
+
+// The closed loops where the depth plane zc cuts the blocker triangles. Crossing points are computed from
+// each edge's endpoints in a fixed order, so neighbouring triangles produce bit-identical points and the
+// segments chain by exact match; open chains (a mesh that is not closed) make no cap.
+std::vector<std::vector<Vec3>> crossSection(const std::vector<BlockerTriangle>& blockers, const std::vector<int>& kept,
+                                            const ConvolutionFrame& f, double zc) {
+    using Key = std::tuple<double, double, double>;
+    auto key = [](const Vec3& v) { return Key{v.x, v.y, v.z}; };
+    std::vector<std::pair<Vec3, Vec3>> segs;
+    for (int idx : kept) {
+        const BlockerTriangle& t = blockers[size_t(idx)];
+        Vec3 pts[2];
+        int m = 0;
+        for (int e = 0; e < 3; ++e) {
+            Vec3 a = t[size_t(e)], b = t[size_t((e + 1) % 3)];
+            if (key(b) < key(a)) std::swap(a, b);
+            double za = f.depth(a), zb = f.depth(b);
+            if ((za >= zc) == (zb >= zc)) continue;
+            if (m < 2) pts[m] = a + (b - a) * ((zc - za) / (zb - za));
+            ++m;
+        }
+        if (m == 2 && key(pts[0]) != key(pts[1])) segs.emplace_back(pts[0], pts[1]);
+    }
+    std::multimap<Key, size_t> at;
+    for (size_t i = 0; i < segs.size(); ++i) {
+        at.emplace(key(segs[i].first), i);
+        at.emplace(key(segs[i].second), i);
+    }
+    std::vector<char> used(segs.size(), 0);
+    std::vector<std::vector<Vec3>> loops;
+    for (size_t s0 = 0; s0 < segs.size(); ++s0) {
+        if (used[s0]) continue;
+        used[s0] = 1;
+        std::vector<Vec3> loop{segs[s0].first};
+        Vec3 cur = segs[s0].second;
+        bool closed = false;
+        while (true) {
+            if (key(cur) == key(loop.front())) {
+                closed = true;
+                break;
+            }
+            loop.push_back(cur);
+            size_t nextSeg = segs.size();
+            auto range = at.equal_range(key(cur));
+            for (auto it = range.first; it != range.second; ++it)
+                if (!used[it->second]) {
+                    nextSeg = it->second;
+                    break;
+                }
+            if (nextSeg == segs.size()) break;
+            used[nextSeg] = 1;
+            cur = key(segs[nextSeg].first) == key(cur) ? segs[nextSeg].second : segs[nextSeg].first;
+        }
+        if (closed && loop.size() >= 3) loops.push_back(std::move(loop));
+    }
+    return loops;
+}
+
+// Of a closed surface, the faces the whole source sees from behind. A ray from a source point through a convex
+// solid enters by a face turned toward that point and leaves by one turned away; with both in the slabs it is
+// counted in each slab it crosses, and the product of the slab maps darkens the penumbra. A face turned away
+// from every source vertex is never where a ray enters, so it can go. A triangle counts as closed when each edge
+// is run the other way by another blocker triangle (a consistently wound closed surface) or lies on the
+// receiver (a box open at the floor); open surfaces (a card, a panel) and inconsistently wound ones stay.
+std::vector<int> facingTheSource(const std::vector<BlockerTriangle>& blockers, const std::vector<int>& kept,
+                                 const ConvolutionFrame& f, const std::vector<Vec3>& source, double zContact) {
+    using Key = std::tuple<double, double, double>;
+    auto key = [](const Vec3& v) { return Key{v.x, v.y, v.z}; };
+    std::map<std::pair<Key, Key>, int> directed;
+    for (int idx : kept)
+        for (int e = 0; e < 3; ++e)
+            ++directed[{key(blockers[size_t(idx)][size_t(e)]), key(blockers[size_t(idx)][size_t((e + 1) % 3)])}];
+    std::vector<int> out;
+    for (int idx : kept) {
+        const BlockerTriangle& t = blockers[size_t(idx)];
+        bool closed = true;
+        for (int e = 0; e < 3 && closed; ++e) {
+            const Vec3& a = t[size_t(e)];
+            const Vec3& b = t[size_t((e + 1) % 3)];
+            auto reverse = directed.find({key(b), key(a)});
+            closed = (reverse != directed.end() && reverse->second > 0) ||
+                     (f.depth(a) >= zContact && f.depth(b) >= zContact);
+        }
+        const Vec3 n = cross(t[1] - t[0], t[2] - t[0]);
+        bool behind = closed;
+        for (size_t k = 0; k < source.size() && behind; ++k) behind = dot(n, source[k] - t[0]) < 0;
+        if (behind) continue;
+        out.push_back(idx);
+    }
+    return out;
+}
+
+void chooseContactSlices(const SourceDesc& src, const std::vector<BlockerTriangle>& blockers,
+                         const std::vector<int>& allKept, const ConvolutionSettings& s, ConvolutionPlan& P) {
+    const ConvolutionFrame& f = P.frame;
+    const double touch = s.depthTolerance * (P.receiverDepth.hi - P.sourceDepth.lo);
+    const std::vector<int> kept = facingTheSource(blockers, allKept, f, src.polygon, P.receiverDepth.lo - touch);
+    const double z_r = P.window.z_r;
+    const double zTop = P.blockerDepth.lo, zBottom = P.blockerDepth.hi;
+    // Penumbra scale of a blocker point at depth z for the source centre and the receiver plane.
+    auto alphaOf = [&](double z) { return std::fmax(0.0, z_r / z - 1); };
+    auto depthOf = [&](double a) { return z_r / (1 + a); };
+    const double aTop = alphaOf(zTop);
+    // Aim a little under e_max: the slabs' errors equal the target by construction, and the rounding of a
+    // scene's coordinates (the same room scaled by 1e-3) must not decide whether the link passes.
+    const double e = s.e_max * (1 - 1e-3);
+    const double a1 = 2 * e * P.p / P.L_S;
+    int N = 1;
+    double r = 1;
+    if (aTop > a1) {
+        N = std::min(s.n_max, 1 + static_cast<int>(std::ceil(std::log(aTop / a1) / std::log1p(e) - 1e-9)));
+        r = N > 1 ? std::pow(aTop / a1, 1.0 / (N - 1)) : 1;
+    }
+    // Boundaries from the receiver up: bound[0] = zBottom, bound[N] = zTop.
+    std::vector<double> bound{zBottom};
+    for (int k = 1; k < N; ++k) bound.push_back(std::fmin(zBottom, depthOf(a1 * std::pow(r, k - 1))));
+    bound.push_back(zTop);
+    P.slices.clear();
+    P.contact = true;
+    for (int k = 0; k < N; ++k) {
+        const double zhi = bound[size_t(k)], zlo = bound[size_t(k) + 1];
+        if (!(zlo < zhi)) continue;
+        SubBlocker sb;
+        double radius = 0;
+        auto take = [&](const std::vector<Vec3>& poly) {
+            for (const Vec3& v : poly) {
+                double z = f.depth(v), k2 = z_r / z;
+                sb.depth.extend(z);
+                radius = std::fmax(radius, std::hypot(f.coordU(v) * k2, f.coordV(v) * k2));
+            }
+            sb.pieces.push_back(poly);
+        };
+        for (int idx : kept) {
+            std::vector<Vec3> piece = clipToDepth(blockers[size_t(idx)], f, zlo, zhi);
+            if (piece.size() >= 3) take(piece);
+        }
+        if (k == 0)
+            for (std::vector<Vec3>& loop : crossSection(blockers, allKept, f, 0.5 * (zlo + zhi))) take(loop);
+        if (sb.pieces.empty()) continue;
+        estimateSlice(P, radius, sb);
+        sb.error *= P.p / std::fmax(sb.alphaLo * P.L_S / 2, P.p);
+        P.slices.push_back(std::move(sb));
+    }
+    P.E_rr = 0;
+    P.alpha_min = HUGE_VAL;
+    for (const SubBlocker& b : P.slices) {
+        P.E_rr = std::fmax(P.E_rr, b.error);
+        P.alpha_min = std::fmin(P.alpha_min, b.alphaLo);
+        P.visibilityError = std::fmax(P.visibilityError, b.visibilityError);
+    }
+}
+
 // Padding (brief §5.2): the blocker is needed over [y + alpha s_lo, y + alpha s_hi]; the padded size
 // must fit maxFftSize.
 std::string padding(const ConvolutionSettings& s, ConvolutionPlan& P) {
@@ -359,7 +543,13 @@ ConvolutionPlan planWithDirection(const SourceDesc& src, const SourceGeometry& s
     refuse(keepBlockers(blockers, s, P, kept));
     refuse(windowAndResolution(src, rec, s, !kept.empty(), P));
     if (kept.empty()) return P;
-    chooseSlices(blockers, kept, s, P);
+    // The blocker reaches the receiver's nearest depth (it stands on it), to the tolerance of the depth order:
+    // a box resting on a floor must not fall on either side of the test with the rounding of its coordinates.
+    const double touch = s.depthTolerance * (P.receiverDepth.hi - P.sourceDepth.lo);
+    if (s.contactSlabs && P.blockerDepth.hi >= P.receiverDepth.lo - touch && P.blockerDepth.lo < P.blockerDepth.hi)
+        chooseContactSlices(src, blockers, kept, s, P);
+    else
+        chooseSlices(blockers, kept, s, P);
     refuse(padding(s, P));
     return P;
 }
@@ -492,6 +682,14 @@ SoftShadowTexture computeSoftShadow(const ConvolutionPlan& P, const SourceDesc& 
         }
         auto t2 = Clock::now();
         polys.clear();
+        for (const std::vector<Vec3>& poly : b.pieces) {
+            std::vector<Vec2> q(poly.size());
+            for (size_t k = 0; k < poly.size(); ++k) {
+                double sc = P.window.z_r / f.depth(poly[k]);
+                q[k] = {f.coordU(poly[k]) * sc, f.coordV(poly[k]) * sc};
+            }
+            polys.add(q.data(), static_cast<int>(q.size()));
+        }
         for (int idx : b.triangles) {
             Vec2 q[3];
             for (int k = 0; k < 3; ++k) {

@@ -65,10 +65,14 @@ struct ConvolutionSettings {
     RasterizerKind rasterizer = RasterizerKind::Auto;
     DirectionChoice direction = DirectionChoice::Auto;
     int maxFftSize = 8192;       // larger padded sizes are refused (std::domain_error)
+    bool contactSlabs = true;    // a blocker reaching the receiver gets contact sub-blockers (issue 12)
 };
 
 struct SubBlocker {
     std::vector<int> triangles;  // indices into the blocker list
+    // Contact sub-blockers instead hold their own geometry: the blocker clipped to the slab, and for the
+    // slab at the receiver the blocker's cross-section there (the cap), so its map is the solid's shadow.
+    std::vector<std::vector<Vec3>> pieces;
     DepthRange depth;
     double alphaLo = 0, alphaHi = 0, alphaStar = 0;  // penumbra scales, virtual-plane units
     double error = 0;            // E_i, texels
@@ -90,6 +94,9 @@ struct ConvolutionPlan {
     double E_rr = 0;
     double alpha_min = HUGE_VAL;  // +inf without blockers
     double visibilityError = 0;   // max over slices, ~ 1.25 E / kernel width (brief §4.2)
+    // The blocker reaches the receiver (an object standing on it): the slabs are the contact sub-blockers
+    // of chooseContactSlices, and E_rr is in units of max(half the slab's narrowest penumbra, one texel).
+    bool contact = false;
 };
 
 struct ConvolutionTimes {
