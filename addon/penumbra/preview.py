@@ -7,7 +7,7 @@ after a save and reload too.
 """
 import bpy
 
-from .materials import parse_material
+from .materials import albedo_input, parse_material
 from .writeback import ATTRIBUTE, baked_state
 
 STATE = "penumbra_preview"
@@ -24,13 +24,42 @@ def _object_level_material(slot):
         slot.link = "DATA"
 
 
+def _irradiance_material(name, original):
+    """For an irradiance bake: a copy of the slot's material, whose colour chain (texture, UV map, Mapping ...)
+    is kept to multiply the stored light by, with its own outputs removed. Returns (material, the socket that
+    fed the diffuse colour, or None; the constant colour to use when there is no such socket)."""
+    const = parse_material(original).albedo
+    if original is None or not original.use_nodes or original.node_tree is None:
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        mat.node_tree.nodes.clear()
+        return mat, None, const
+    mat = original.copy()
+    mat.name = name
+    nt = mat.node_tree
+    sock = albedo_input(nt)
+    source = None
+    if sock is not None:
+        if sock.is_linked and sock.links[0].is_valid and not sock.links[0].from_node.mute:
+            source = sock.links[0].from_socket
+        elif not sock.is_linked:
+            const = tuple(sock.default_value[:3])
+    for node in [n for n in nt.nodes if n.type == "OUTPUT_MATERIAL"]:
+        nt.nodes.remove(node)
+    return mat, source, const
+
+
 def _make_material(name, state, original):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    irradiance = bool(state.get("irradiance"))
+    if irradiance:
+        mat, albedo_source, albedo_const = _irradiance_material(name, original)
+    else:
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        mat.node_tree.nodes.clear()
     # The preview only shows stored light; letting Cycles sample it as a light would only add noise.
     mat.cycles.sample_as_light = False
     nt = mat.node_tree
-    nt.nodes.clear()
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     out.location = (600, 0)
     emit = nt.nodes.new("ShaderNodeEmission")
@@ -54,6 +83,19 @@ def _make_material(name, state, original):
         attr.location = (-150, 0)
         attr.layer_name = state.get("attribute", ATTRIBUTE)
         nt.links.new(attr.outputs["Color"], emit.inputs["Color"])
+    if irradiance:
+        # The stored light is E/pi without any albedo: times the material's own colour it is what the
+        # material reflects, as the game engine this bake is for would show it.
+        light = emit.inputs["Color"].links[0].from_socket
+        mul = nt.nodes.new("ShaderNodeVectorMath")
+        mul.operation = "MULTIPLY"
+        mul.location = (50, 150)
+        nt.links.new(light, mul.inputs[0])
+        if albedo_source is not None:
+            nt.links.new(albedo_source, mul.inputs[1])
+        else:
+            mul.inputs[1].default_value = albedo_const[:3]
+        nt.links.new(mul.outputs["Vector"], emit.inputs["Color"])
     shader = emit.outputs["Emission"]
     radiance = parse_material(original).radiance
     peak = max(radiance)
