@@ -285,3 +285,40 @@ def test_albedo_bake_leaves_nothing_behind_and_colour_attribute_is_averaged(empt
         albedo._bake_batch = saved
     assert_same_state(before, blend_state())
     assert sc.cycles.samples == 77 and sc.render.engine == "BLENDER_EEVEE"
+
+
+def test_irradiance_setting_reaches_bake_from_the_panel_and_the_cli(empty_scene, penumbra):
+    from penumbra import cli
+    s = empty_scene.penumbra
+    assert s.as_settings()["irradiance"] is False
+    s.irradiance = True
+    assert s.as_settings()["irradiance"] is True
+    args = cli.parser().parse_args(["--out", "x", "--no-irradiance"])
+    assert cli.settings_from(s, args)["irradiance"] is False
+    args = cli.parser().parse_args(["--out", "x", "--irradiance"])
+    assert cli.settings_from(None, args)["irradiance"] is True
+    with pytest.raises(TypeError, match="irradiance must be True or False"):
+        penumbra.bake(empty_scene, irradiance=1)
+
+
+def test_textured_floor_of_a_scene_that_is_not_the_active_one(empty_scene, penumbra):
+    """The albedo bake runs in the baked scene, not in the window's: the lightmap shows the checker."""
+    img = _checker_image("Checker")
+    _scene(_textured_material("Checker", img))
+    other = bpy.data.scenes.new("Other")
+    for ob in list(empty_scene.collection.objects):
+        other.collection.objects.link(ob)
+        empty_scene.collection.objects.unlink(ob)
+    assert bpy.context.scene == empty_scene and not empty_scene.objects
+    report = penumbra.bake(other, resolution=LM, margin=2, targets={"LIGHTMAP"}, uv_map="UVMap")
+    assert "albedo_bake" in report["times"]
+    full = _lightmap("Floor")
+    report = penumbra.bake(other, resolution=LM, margin=2, targets={"LIGHTMAP"}, uv_map="UVMap",
+                           irradiance=True)
+    irr = _lightmap("Floor")
+    mask = _interior("Floor") & (irr.min(axis=2) > 0)
+    ratio = full[mask] / irr[mask]
+    # The checker's two colours, texel by texel (Closest interpolation: each texel is one square's colour).
+    near = np.minimum(np.abs(ratio - CHECKER[0]).max(axis=1), np.abs(ratio - CHECKER[1]).max(axis=1))
+    assert np.percentile(near, 95) < 1e-3
+    assert 0.3 < (np.abs(ratio - CHECKER[0]).max(axis=1) < 1e-3).mean() < 0.7

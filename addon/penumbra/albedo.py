@@ -103,7 +103,7 @@ def bake_albedo(scene, view_layer, jobs, margin):
             else:
                 batches.append({"uv": uv_name, "names": [name], "mats": set(mats)})
         for b in batches:
-            result.update(_bake_batch(view_layer, b["names"], b["uv"], jobs, margin))
+            result.update(_bake_batch(scene, view_layer, b["names"], b["uv"], jobs, margin))
     finally:
         settings.restore()
         for o in view_layer.objects:
@@ -118,7 +118,7 @@ def bake_albedo(scene, view_layer, jobs, margin):
     return result, time.perf_counter() - t0
 
 
-def _bake_batch(view_layer, names, uv_name, jobs, margin):
+def _bake_batch(scene, view_layer, names, uv_name, jobs, margin):
     made = []          # (node tree, image node, the tree's active node before)
     images = {}
     try:
@@ -138,9 +138,11 @@ def _bake_batch(view_layer, names, uv_name, jobs, margin):
         for name in names:
             bpy.data.objects[name].select_set(True, view_layer=view_layer)
         view_layer.objects.active = bpy.data.objects[names[0]]
-        r = bpy.ops.object.bake(type="DIFFUSE", pass_filter={"COLOR"}, margin=margin + EXTRA_MARGIN,
-                                margin_type="EXTEND", use_clear=True, target="IMAGE_TEXTURES",
-                                use_selected_to_active=False, uv_layer=uv_name)
+        # The operator bakes the context's scene: name it, for a bake of a scene that is not the active one.
+        with bpy.context.temp_override(scene=scene, view_layer=view_layer, active_object=bpy.data.objects[names[0]]):
+            r = bpy.ops.object.bake(type="DIFFUSE", pass_filter={"COLOR"}, margin=margin + EXTRA_MARGIN,
+                                    margin_type="EXTEND", use_clear=True, target="IMAGE_TEXTURES",
+                                    use_selected_to_active=False, uv_layer=uv_name)
         if r != {"FINISHED"}:
             raise RuntimeError(f"Cycles could not bake the albedo of {', '.join(names)} ({r})")
         out = {}
