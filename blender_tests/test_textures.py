@@ -322,3 +322,35 @@ def test_textured_floor_of_a_scene_that_is_not_the_active_one(empty_scene, penum
     near = np.minimum(np.abs(ratio - CHECKER[0]).max(axis=1), np.abs(ratio - CHECKER[1]).max(axis=1))
     assert np.percentile(near, 95) < 1e-3
     assert 0.3 < (np.abs(ratio - CHECKER[0]).max(axis=1) < 1e-3).mean() < 0.7
+
+
+def test_preview_shows_an_emission_texture_texel_by_texel(empty_scene, penumbra):
+    """A panel whose Principled emission comes from an image: the preview adds the material's own emission
+    chain to the lightmap, so Cycles' Emit bake of the preview is the lightmap plus Cycles' Emit bake of the
+    panel's own material, texel by texel (the solve lights the scene with the image's mean)."""
+    img = _checker_image("Checker")
+    sc = _scene(_textured_material("Checker", img))
+    mat = _textured_material("Glow", _checker_image("GlowImage"), principled=True)
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    tex = next(n for n in mat.node_tree.nodes if n.type == "TEX_IMAGE")
+    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Emission"])
+    bsdf.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    mat.node_tree.links.remove(bsdf.inputs["Base Color"].links[0])
+    bsdf.inputs["Emission Strength"].default_value = 2.0
+    panel = quad_object("Panel", 0.5, 0.3, material=mat, cuts=2)
+    _floor_uv(panel)
+    panel.rotation_euler = (0.0, np.pi / 2, 0.0)       # normal +Z turned to +X
+    panel.location = (-1.0, 0.0, 0.5)
+    report = _bake(penumbra, sc)
+    assert any("Glow" in n and "average of image 'GlowImage'" in n for n in report["notes"])
+    own = _cycles(sc, "Panel", set(), samples=1, kind="EMIT")
+    light = _lightmap("Panel")
+    penumbra.preview(sc, True)
+    pm = panel.material_slots[0].material
+    assert pm.name.startswith("Penumbra Preview")
+    shown = _cycles(sc, "Panel", set(), samples=1, kind="EMIT")
+    mask = _interior("Panel")
+    assert light[mask].max() > 0 and np.ptp(own[mask]) > 0.5
+    np.testing.assert_allclose(shown[mask], own[mask] + light[mask], rtol=2e-3, atol=1e-6)
+    penumbra.preview(sc, False)
+    assert panel.material_slots[0].material == mat

@@ -259,3 +259,24 @@ def albedo_input(node_tree):
     if node.type == "BSDF_PRINCIPLED":
         return node.inputs["Base Color"]
     return None
+
+
+def emission_input(node_tree):
+    """(colour, strength) inputs of the one emitting shader (Emission, or Principled BSDF's emission) that feeds
+    the Cycles output of `node_tree` directly, or (None, None)."""
+    out = node_tree.get_output_node("CYCLES")
+    node = _follow(out.inputs["Surface"])[0] if out is not None else None
+    if node is None:
+        return None, None
+    if node.type == "EMISSION":
+        return node.inputs["Color"], node.inputs["Strength"]
+    if node.type == "BSDF_PRINCIPLED":
+        return _input(node, "Emission Color", "Emission"), _input(node, "Emission Strength")
+    return None, None
+
+
+def emission_varies(mat):
+    """Whether the emission colour of `mat` comes from a node other than an RGB node (an emission texture)."""
+    if mat is None or not mat.use_nodes or mat.node_tree is None:
+        return False
+    return _varies(emission_input(mat.node_tree)[0])
