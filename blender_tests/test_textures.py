@@ -354,3 +354,22 @@ def test_preview_shows_an_emission_texture_texel_by_texel(empty_scene, penumbra)
     np.testing.assert_allclose(shown[mask], own[mask] + light[mask], rtol=2e-3, atol=1e-6)
     penumbra.preview(sc, False)
     assert panel.material_slots[0].material == mat
+
+
+def test_a_shown_preview_follows_a_rebake_in_the_other_mode(empty_scene, penumbra):
+    img = _checker_image("Checker")
+    sc = _scene(_textured_material("Checker", img))
+    _bake(penumbra, sc)
+    penumbra.preview(sc, True)
+    floor = bpy.data.objects["Floor"]
+
+    def multiplies():
+        nt = floor.material_slots[0].material.node_tree
+        return any(n.type == "VECT_MATH" for n in nt.nodes)
+    assert not multiplies()
+    _bake(penumbra, sc, irradiance=True)
+    assert multiplies()
+    _bake(penumbra, sc)
+    assert not multiplies()
+    penumbra.preview(sc, False)
+    assert floor.material_slots[0].material.name == "Checker"

@@ -195,6 +195,9 @@ class Job:
             report["times"]["total"] = time.perf_counter() - self._t_start
             step("done", 1.0)
 
+        # A preview built for the other kind of bake (irradiance or not) would show the new one wrongly.
+        shown = {n: bool(writeback.baked_state(bpy.data.objects[n]).get("irradiance"))
+                 for n in self.exported.bake_objects if bpy.data.objects[n].get(_preview.STATE) is not None}
         with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
             ws = dict(s)
@@ -204,6 +207,11 @@ class Job:
             writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
                                 progress=step if progress is not None else None, before_commit=before_commit,
                                 black=self._black_objects())
+        for name, was in shown.items():
+            ob = bpy.data.objects[name]
+            if name in report.get("objects_baked", ()) and was != bool(s["irradiance"]):
+                _preview.preview_off(ob)
+                _preview.preview_on(ob)
         return _jsonable(report)
 
 
