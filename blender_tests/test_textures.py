@@ -373,3 +373,46 @@ def test_a_shown_preview_follows_a_rebake_in_the_other_mode(empty_scene, penumbr
     assert not multiplies()
     penumbra.preview(sc, False)
     assert floor.material_slots[0].material.name == "Checker"
+
+
+def test_an_object_cycles_cannot_bake_is_averaged_and_says_so(empty_scene, penumbra):
+    """An empty second material slot: Cycles' bake needs an image node in every material, so the object keeps
+    the mean albedo in its lightmap, and the report names it."""
+    img = _checker_image("Checker")
+    sc = _scene(_textured_material("Checker", img))
+    floor = bpy.data.objects["Floor"]
+    floor.data.materials.append(None)
+    report = _bake(penumbra, sc)
+    assert "albedo_bake" not in report["times"]
+    assert any("'Floor'" in w and "albedo averaged" in w and "slot 2" in w for w in report["warnings"])
+    full = _lightmap("Floor")
+    irr = _bake_irradiance(penumbra, sc)
+    mean = np.array(CHECKER, np.float32).mean(axis=0)
+    mask = _interior("Floor")
+    np.testing.assert_allclose(full[mask], irr[mask] * mean, rtol=1e-4)
+
+
+def test_procedural_texture_is_followed_per_texel(empty_scene, penumbra):
+    """A Checker Texture node (procedural: the solve takes 0.8 grey for it, with a warning) on the open floor,
+    whose own light hardly bounces back to it: the lightmap matches Cycles texel by texel as the image's does
+    (same 3 % and 1.5 % as test_textured_floor_matches_cycles_texel_by_texel)."""
+    mat = diffuse_material("Procedural", (0.5, 0.5, 0.5))
+    nt = mat.node_tree
+    bsdf = next(n for n in nt.nodes if n.type == "BSDF_DIFFUSE")
+    chk = nt.nodes.new("ShaderNodeTexChecker")
+    chk.inputs["Color1"].default_value = (*CHECKER[0], 1.0)
+    chk.inputs["Color2"].default_value = (*CHECKER[1], 1.0)
+    chk.inputs["Scale"].default_value = 3.0
+    nt.links.new(chk.outputs["Color"], bsdf.inputs["Color"])
+    sc = _scene(mat)
+    report = _bake(penumbra, sc)
+    assert any("'Floor'" in w and "0.8 grey" in w for w in report["warnings"])
+    assert "albedo_bake" in report["times"]
+    test = _lightmap("Floor")
+    ref = _cycles(sc, "Floor", {"DIRECT", "INDIRECT", "COLOR"})
+    mask = _interior("Floor")
+    err = _rel_rms(test, ref, mask)
+    print(f"procedural checker floor vs Cycles: {100 * err:.2f} % RMS per texel")
+    assert err < 0.03
+    ratio = np.median(test[mask] / np.maximum(ref[mask], 1e-9), axis=0)
+    assert np.all(np.abs(ratio - 1) < 0.015), ratio
