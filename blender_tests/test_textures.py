@@ -147,14 +147,15 @@ def _bake(penumbra, scene, **kw):
 @pytest.mark.parametrize("principled", [False, True])
 def test_textured_floor_matches_cycles_texel_by_texel(empty_scene, penumbra, principled):
     """Tolerance: Cycles' 64-spp bake is 0.28 % RMS per texel from a 1024-spp one (two 64-spp seeds: 0.36 %),
-    and Penumbra is 1.1 % from the 1024-spp bake (median texel ratio 1.0000); 3 % RMS and 1.5 % on the median
+    and Penumbra is 0.68 % from the 1024-spp bake (median texel ratio 1.0000; 1.1 % with a 1-sample albedo
+    bake, which misses the mix of both squares in a texel on their edge); 3 % RMS and 1.5 % on the median
     ratio leave room for both. The floor's albedo averaged (what the lightmap held before it followed the
     texture: the irradiance times the checker's mean) is 79 % RMS off on this checker, far outside."""
     img = _checker_image("Checker")
     sc = _scene(_textured_material("Checker", img, principled))
     t = time.perf_counter()
     report = _bake(penumbra, sc)
-    assert report["times"]["albedo_bake"] < 10.0
+    assert report["times"]["albedo_bake"] < 20.0
     assert any("albedo followed per texel" in n and "Floor" in n for n in report["notes"])
     test = _lightmap("Floor")
     ref = _cycles(sc, "Floor", {"DIRECT", "INDIRECT", "COLOR"})
