@@ -1,14 +1,13 @@
 """Per-texel albedo of objects whose diffuse colour comes from a texture or any other node tree.
 
 The solver works with one albedo per face (an image texture's mean, 0.8 grey for a node it cannot read; see
-materials.py), which is what the light bounced off a surface needs. What a lightmap shows is albedo x irradiance
-at each texel, so for such objects the write-back asks the solver for the irradiance (E / pi) and multiplies it
-by the albedo at the same texel. That
-albedo comes from Cycles' own DIFFUSE bake with only the Color pass, into the lightmap's UV layout: Cycles
-evaluates the material exactly as it renders it (image textures through their UV map and Mapping node,
-procedural textures, mixes). The Color pass needs no light transport (no bounces); its samples only spread over
-the texel, as those of Cycles' full DIFFUSE bake do, so a texel on a texture's edge holds the same mix of both
-sides.
+materials.py), which is what the light bounced off a surface needs. What a lightmap shows is albedo x irradiance at
+each texel, so for such objects the write-back asks the solver for the irradiance (E / pi) and multiplies it by the
+albedo at the same texel. That albedo comes from Cycles' own DIFFUSE bake with only the Color pass, into the
+lightmap's UV layout: Cycles evaluates the material exactly as it renders it (image textures through their UV map
+and Mapping node, procedural textures, mixes). The Color pass needs no light transport (no bounces); its samples
+only spread over the texel, as those of Cycles' full DIFFUSE bake do, so a texel on a texture's edge holds the same
+mix of both sides.
 
 Nothing here stays in the .blend: the image nodes, the images and the render settings are put back on every
 path, and objects that showed the preview are switched back to it.
