@@ -30,6 +30,11 @@ def _checker_image(name, colours=CHECKER, n=8):
     return img
 
 
+def _socket(node, *names):
+    """The first of the names the node has (Principled inputs were renamed in Blender 4)."""
+    return next(node.inputs[n] for n in names if n in node.inputs)
+
+
 def _textured_material(name, img, principled=False):
     """Image -> colour through an explicit UV map and a Mapping node that tiles it twice."""
     mat = bpy.data.materials.new(name)
@@ -40,7 +45,7 @@ def _textured_material(name, img, principled=False):
     if principled:
         bsdf = nt.nodes.new("ShaderNodeBsdfPrincipled")
         bsdf.inputs["Roughness"].default_value = 0.0
-        bsdf.inputs["Specular"].default_value = 0.0
+        _socket(bsdf, "Specular IOR Level", "Specular").default_value = 0.0
         colour = bsdf.inputs["Base Color"]
     else:
         bsdf = nt.nodes.new("ShaderNodeBsdfDiffuse")
@@ -342,7 +347,7 @@ def test_preview_shows_an_emission_texture_texel_by_texel(empty_scene, penumbra)
     mat = _textured_material("Glow", _checker_image("GlowImage"), principled=True)
     bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     tex = next(n for n in mat.node_tree.nodes if n.type == "TEX_IMAGE")
-    mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Emission"])
+    mat.node_tree.links.new(tex.outputs["Color"], _socket(bsdf, "Emission Color", "Emission"))
     bsdf.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
     mat.node_tree.links.remove(bsdf.inputs["Base Color"].links[0])
     bsdf.inputs["Emission Strength"].default_value = 2.0
