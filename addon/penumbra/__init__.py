@@ -55,7 +55,7 @@ TARGETS = frozenset({"LIGHTMAP", "COLOR_ATTRIBUTE"})
 # while baking, 4 GB at this size); a larger resolution would only be refused after the whole solve.
 MAX_RESOLUTION = 8192
 DEFAULTS = {"resolution": 256, "margin": 4, "uv_map": None, "targets": TARGETS, "selection_only": False,
-            "output_dir": None}
+            "output_dir": None, "irradiance": False}
 
 
 class BakeError(RuntimeError):
@@ -72,8 +72,9 @@ def _settings(given):
     s["targets"] = frozenset(s["targets"] if not isinstance(s["targets"], str) else {s["targets"]})
     if not s["targets"] or not s["targets"] <= TARGETS:
         raise ValueError(f"targets must be a non-empty subset of {sorted(TARGETS)}, got {sorted(s['targets'])}")
-    if not isinstance(s["selection_only"], bool):
-        raise TypeError(f"selection_only must be True or False, got {s['selection_only']!r}")
+    for key in ("selection_only", "irradiance"):
+        if not isinstance(s[key], bool):
+            raise TypeError(f"{key} must be True or False, got {s[key]!r}")
     for key in ("uv_map", "output_dir"):
         if s[key] is not None and not isinstance(s[key], str):
             raise TypeError(f"{key} must be a string or None, got {s[key]!r}")
@@ -194,6 +195,9 @@ class Job:
             report["times"]["total"] = time.perf_counter() - self._t_start
             step("done", 1.0)
 
+        # A preview built for the other kind of bake (irradiance or not) would show the new one wrongly.
+        shown = {n: bool(writeback.baked_state(bpy.data.objects[n]).get("irradiance"))
+                 for n in self.exported.bake_objects if bpy.data.objects[n].get(_preview.STATE) is not None}
         with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
             ws = dict(s)
@@ -203,6 +207,11 @@ class Job:
             writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
                                 progress=step if progress is not None else None, before_commit=before_commit,
                                 black=self._black_objects())
+        for name, was in shown.items():
+            ob = bpy.data.objects[name]
+            if name in report.get("objects_baked", ()) and was != bool(s["irradiance"]):
+                _preview.preview_off(ob)
+                _preview.preview_on(ob)
         return _jsonable(report)
 
 

@@ -98,6 +98,9 @@ def parser():
                      help="bake only the objects selected in the file (the others are left out of the solve)")
     sel.add_argument("--all", dest="selection_only", action="store_const", const=False,
                      help="bake every visible mesh object")
+    ap.add_argument("--irradiance", action=argparse.BooleanOptionalAction, default=None,
+                    help="bake the arriving light without the albedo (Cycles' Diffuse Direct + Indirect without "
+                         "Color), for engines that multiply by their own albedo (the panel's Irradiance Only)")
     # One flag per panel setting of the solver, from settings_table (--visibility-rays N, --no-clustering, ...).
     for s in settings_table.PANEL:
         if s.type is bool:
@@ -118,7 +121,7 @@ def settings_from(panel, args):
     s = dict(panel.as_settings()) if panel is not None else {}
     if args.quality:
         s.update(settings_table.PRESETS[args.quality.upper()])
-    for key in ("resolution", "margin", "uv_map", "selection_only") + settings_table.SOLVER_KEYS:
+    for key in ("resolution", "margin", "uv_map", "selection_only", "irradiance") + settings_table.SOLVER_KEYS:
         v = getattr(args, key)
         if v is not None:
             s[key] = v

@@ -200,3 +200,83 @@ def _clamped(info):
         info.warnings.append(f"albedo ({a[0]:.4g}, {a[1]:.4g}, {a[2]:.4g}) clamped to [0, {MAX_ALBEDO}]")
     info.albedo = c
     return info
+
+
+def _input(node, *names):
+    """The first of `names` that the node has (sockets renamed between Blender versions)."""
+    for n in names:
+        if n in node.inputs:
+            return node.inputs[n]
+    return None
+
+
+def _varies(socket):
+    """Whether a node (other than a constant RGB node) drives this input, so it can change across the surface."""
+    if socket is None:
+        return False
+    node, _ = _follow(socket)
+    return node is not None and node.type != "RGB"
+
+
+def albedo_varies(mat):
+    """Whether the diffuse colour of `mat` can change across a surface: a texture, procedural or any other
+    node on the diffuse colour (Diffuse Color, Principled Base Color, Metallic or Transmission) or on the
+    factor of a Mix Shader on the way to the output. Such a material's albedo is followed per texel by
+    baking it (albedo.py); a constant one is what parse_material reads."""
+    if mat is None or not mat.use_nodes or mat.node_tree is None:
+        return False
+    out = mat.node_tree.get_output_node("CYCLES")
+    if out is None:
+        return False
+
+    def walk(node, depth):
+        if node is None or depth > 32:
+            return False
+        if node.type == "BSDF_DIFFUSE":
+            return _varies(node.inputs["Color"])
+        if node.type == "BSDF_PRINCIPLED":
+            return any(_varies(_input(node, *names)) for names in
+                       (("Base Color",), ("Metallic",), ("Transmission Weight", "Transmission")))
+        if node.type == "MIX_SHADER":
+            return _varies(node.inputs["Fac"]) or any(walk(_follow(s)[0], depth + 1) for s in node.inputs[1:3])
+        if node.type == "ADD_SHADER":
+            return any(walk(_follow(s)[0], depth + 1) for s in node.inputs[0:2])
+        return False
+    return walk(_follow(out.inputs["Surface"])[0], 0)
+
+
+def albedo_input(node_tree):
+    """The colour input of the one diffuse shader (Diffuse BSDF or Principled BSDF) that feeds the Cycles
+    output of `node_tree` directly, or None when the surface is anything else (mixed shaders, emission)."""
+    out = node_tree.get_output_node("CYCLES")
+    if out is None:
+        return None
+    node, _ = _follow(out.inputs["Surface"])
+    if node is None:
+        return None
+    if node.type == "BSDF_DIFFUSE":
+        return node.inputs["Color"]
+    if node.type == "BSDF_PRINCIPLED":
+        return node.inputs["Base Color"]
+    return None
+
+
+def emission_input(node_tree):
+    """(colour, strength) inputs of the one emitting shader (Emission, or Principled BSDF's emission) that feeds
+    the Cycles output of `node_tree` directly, or (None, None)."""
+    out = node_tree.get_output_node("CYCLES")
+    node = _follow(out.inputs["Surface"])[0] if out is not None else None
+    if node is None:
+        return None, None
+    if node.type == "EMISSION":
+        return node.inputs["Color"], node.inputs["Strength"]
+    if node.type == "BSDF_PRINCIPLED":
+        return _input(node, "Emission Color", "Emission"), _input(node, "Emission Strength")
+    return None, None
+
+
+def emission_varies(mat):
+    """Whether the emission colour of `mat` comes from a node other than an RGB node (an emission texture)."""
+    if mat is None or not mat.use_nodes or mat.node_tree is None:
+        return False
+    return _varies(emission_input(mat.node_tree)[0])

@@ -96,6 +96,7 @@ class _Main:
         else:
             sub.prop(s, "uv_map")
         sub.prop(s, "output_dir")
+        col.prop(s, "irradiance")
         col.separator()
         col.row().prop(s, "quality", expand=True)
 

@@ -7,7 +7,7 @@ after a save and reload too.
 """
 import bpy
 
-from .materials import parse_material
+from .materials import albedo_input, emission_input, emission_varies, parse_material
 from .writeback import ATTRIBUTE, baked_state
 
 STATE = "penumbra_preview"
@@ -24,13 +24,52 @@ def _object_level_material(slot):
         slot.link = "DATA"
 
 
+def _linked_source(sock):
+    """The output socket feeding `sock`, when a valid link from an unmuted node does."""
+    if sock is None or not sock.is_linked:
+        return None
+    link = sock.links[0]
+    return link.from_socket if link.is_valid and not link.from_node.mute else None
+
+
+def _copied_material(name, original):
+    """A copy of the slot's material, whose colour chains (texture, UV map, Mapping ...) are kept to multiply
+    the stored light by (an irradiance bake) and to show an emission texture, with its own outputs removed.
+    Returns (material, the socket that fed the diffuse colour, or None; the constant colour to use when there
+    is no such socket; the copy's emission colour and strength inputs, or None)."""
+    const = parse_material(original).albedo
+    if original is None or not original.use_nodes or original.node_tree is None:
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        mat.node_tree.nodes.clear()
+        return mat, None, const, (None, None)
+    mat = original.copy()
+    mat.name = name
+    nt = mat.node_tree
+    sock = albedo_input(nt)
+    source = _linked_source(sock)
+    if sock is not None and not sock.is_linked:
+        const = tuple(sock.default_value[:3])
+    emission = emission_input(nt)
+    for node in [n for n in nt.nodes if n.type == "OUTPUT_MATERIAL"]:
+        nt.nodes.remove(node)
+    return mat, source, const, emission
+
+
 def _make_material(name, state, original):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    irradiance = bool(state.get("irradiance"))
+    # An emission texture is shown through the material's own chain too, so the material is copied for it.
+    copied = irradiance or emission_varies(original)
+    if copied:
+        mat, albedo_source, albedo_const, (colour, strength) = _copied_material(name, original)
+    else:
+        colour = strength = None
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        mat.node_tree.nodes.clear()
     # The preview only shows stored light; letting Cycles sample it as a light would only add noise.
     mat.cycles.sample_as_light = False
     nt = mat.node_tree
-    nt.nodes.clear()
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     out.location = (600, 0)
     emit = nt.nodes.new("ShaderNodeEmission")
@@ -54,10 +93,37 @@ def _make_material(name, state, original):
         attr.location = (-150, 0)
         attr.layer_name = state.get("attribute", ATTRIBUTE)
         nt.links.new(attr.outputs["Color"], emit.inputs["Color"])
+    if irradiance:
+        # The stored light is E/pi without any albedo: times the material's own colour it is what the
+        # material reflects, as the game engine this bake is for would show it.
+        light = emit.inputs["Color"].links[0].from_socket
+        mul = nt.nodes.new("ShaderNodeVectorMath")
+        mul.operation = "MULTIPLY"
+        mul.location = (50, 150)
+        nt.links.new(light, mul.inputs[0])
+        if albedo_source is not None:
+            nt.links.new(albedo_source, mul.inputs[1])
+        else:
+            mul.inputs[1].default_value = albedo_const[:3]
+        nt.links.new(mul.outputs["Vector"], emit.inputs["Color"])
     shader = emit.outputs["Emission"]
     radiance = parse_material(original).radiance
     peak = max(radiance)
-    if peak > 0:
+    source = _linked_source(colour)
+    if source is not None:
+        own = nt.nodes.new("ShaderNodeEmission")
+        own.location = (200, -200)
+        nt.links.new(source, own.inputs["Color"])
+        if _linked_source(strength) is not None:
+            nt.links.new(_linked_source(strength), own.inputs["Strength"])
+        else:
+            own.inputs["Strength"].default_value = strength.default_value
+        add = nt.nodes.new("ShaderNodeAddShader")
+        add.location = (400, 0)
+        nt.links.new(shader, add.inputs[0])
+        nt.links.new(own.outputs["Emission"], add.inputs[1])
+        shader = add.outputs["Shader"]
+    elif peak > 0:
         own = nt.nodes.new("ShaderNodeEmission")
         own.location = (200, -200)
         own.inputs["Color"].default_value = (*(c / peak for c in radiance), 1.0)

@@ -87,6 +87,11 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         name="Margin",
         description="Pixels filled around each UV island so that filtering and mipmaps do not pull in black "
                     "from outside the island", default=4, min=0, max=64)
+    irradiance: BoolProperty(
+        name="Irradiance Only",
+        description="Bake the light arriving at each surface (Cycles' Diffuse Direct + Indirect without Color) "
+                    "instead of the light it reflects: what a game engine multiplies by its own albedo texture. "
+                    "The preview multiplies it by the material's colour", default=False)
     uv_map: StringProperty(
         name="UV Map",
         description="Existing UV map to bake the lightmaps into. Empty: Penumbra creates 'PenumbraLightmap' "
@@ -108,7 +113,7 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         targets = {t for t, on in (("LIGHTMAP", self.lightmap), ("COLOR_ATTRIBUTE", self.color_attribute)) if on}
         s = {"resolution": self.resolution, "margin": self.margin, "targets": targets,
              "uv_map": self.uv_map or None, "selection_only": self.selection_only,
-             "output_dir": self.output_dir or None}
+             "output_dir": self.output_dir or None, "irradiance": self.irradiance}
         s.update((key, getattr(self, key)) for key in settings_table.SOLVER_KEYS)
         return s
 

@@ -353,9 +353,15 @@ def _check_front_light(ob, ob_eval, matrix, solution, report):
             f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals)")
 
 
-def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report, files, reflects=True):
-    """Rasterise and store one object's bake. Nothing here replaces earlier results: that is the commit."""
+def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report, files, reflects=True,
+                 albedo=None):
+    """Rasterise and store one object's bake. Nothing here replaces earlier results: that is the commit.
+
+    `albedo`: the object's albedo per lightmap texel (albedo.py), for a material whose colour varies; its
+    lightmap is then the solver's irradiance times that albedo. With settings["irradiance"] every target holds
+    the irradiance E/pi without any albedo."""
     targets = settings["targets"]
+    irradiance = bool(settings.get("irradiance"))
     res, margin = settings["resolution"], settings["margin"]
     ob_eval = ob.evaluated_get(dg)
     matrix = np.array(ob_eval.matrix_world, np.float64)
@@ -364,7 +370,7 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
         _check_front_light(ob, ob_eval, matrix, solution, report)
     old = baked_state(ob)
     record = {"uv_map": uv_name, "uv_created": bool(uv_created or old.get("uv_created", False)) and
-              uv_name == UV_NAME}
+              uv_name == UV_NAME, "irradiance": irradiance}
     outputs = {}
 
     shared = 0.0
@@ -381,11 +387,19 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
                 f"object '{ob.name}': {100 * shared:.0f} % of its lightmap texels are shared by overlapping "
                 f"faces of UV map '{uv_name}'{why}; those faces show one light in the lightmap, which is wrong "
                 f"for all but one of them: apply the modifiers, or give every face its own UV space")
-        px = solution.bake_lightmap(positions, uvs, res, res, margin)
-        px = np.ascontiguousarray(px, np.float32)
+        px = solution.bake_lightmap(positions, uvs, res, res, margin,
+                                    irradiance=irradiance or albedo is not None)
+        px = np.array(px, np.float32)
         if px.shape != (res, res, 4):
             raise WritebackError(f"object '{ob.name}': the solver returned a lightmap of shape {px.shape}, "
                                  f"expected {(res, res, 4)}")
+        if albedo is not None and not irradiance:
+            if albedo.shape != (res, res, 3):
+                raise WritebackError(f"object '{ob.name}': albedo bake of shape {albedo.shape}, expected "
+                                     f"{(res, res, 3)}")
+            # Cycles' diffuse colour at each texel times the light arriving there: what its DIFFUSE bake with
+            # Direct + Indirect + Color holds, texel by texel.
+            px[:, :, :3] *= np.maximum(albedo, 0.0)
         if not np.isfinite(px).all():
             raise WritebackError(f"object '{ob.name}': the solver returned non-finite lightmap texels")
         final = IMAGE_PREFIX + ob.name
@@ -452,7 +466,7 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
                 pts, nrm = corner_samples(base, matrix)
         finally:
             ob_eval.to_mesh_clear()
-        rgb = np.asarray(solution.radiance(pts, nrm), np.float32)
+        rgb = np.asarray(solution.radiance(pts, nrm, irradiance=irradiance), np.float32)
         if rgb.shape != (len(pts), 3) or not np.isfinite(rgb).all():
             raise WritebackError(f"object '{ob.name}': the solver returned invalid corner radiance")
         rgba = np.ones((len(pts), 4), np.float32)
@@ -602,12 +616,20 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                     mesh.uv_layers.remove(mesh.uv_layers[uv[name][0]])
                 continue
             baked.append(name)
+        albedo_maps = _albedo_maps(scene, view_layer, baked, uv, settings, report)
+        if albedo_maps:
+            # The bake operator re-evaluated the scene; the depsgraph's evaluated objects are taken anew.
+            if bpy.context.scene == scene:
+                dg = bpy.context.evaluated_depsgraph_get()
+            else:
+                view_layer.update()
+                dg = view_layer.depsgraph
         for i, name in enumerate(baked):
             if progress is not None:
                 progress("write-back", i / max(len(baked), 1))
             ob = bpy.data.objects[name]
             outputs[name] = write_object(ob, solution, native, dg, uv[name][0], uv[name][1], settings, tx,
-                                         report, files, reflects=name not in black)
+                                         report, files, reflects=name not in black, albedo=albedo_maps.get(name))
         if before_commit is not None:
             before_commit(baked, outputs)
         for tmp, path in files.items():
@@ -625,6 +647,38 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             report["warnings"].append("rollback incomplete: " + "; ".join(errors))
         raise
     return outputs
+
+
+def _albedo_maps(scene, view_layer, names, uv, settings, report):
+    """The per-texel albedo of the objects whose material colour varies (albedo.py), and a word in the report
+    for every such object whose light is not followed texel by texel somewhere."""
+    from . import albedo
+    textured = [n for n in names if albedo.needs_bake(bpy.data.objects[n])]
+    if not textured or settings.get("irradiance"):
+        return {}
+    jobs = {}
+    for n in textured:
+        if "LIGHTMAP" not in settings["targets"]:
+            report["warnings"].append(f"object '{n}': albedo averaged: its material's colour varies across the "
+                                      f"surface (a texture), and the colour attribute holds the light with the "
+                                      f"material's mean albedo; bake a lightmap to follow it per texel")
+            continue
+        why = albedo.why_not(bpy.data.objects[n])
+        if why:
+            report["warnings"].append(f"object '{n}': albedo averaged: its material's colour varies across the "
+                                      f"surface, but Cycles cannot bake it ({why}); the lightmap uses the "
+                                      f"material's mean albedo")
+            continue
+        jobs[n] = (uv[n][0], settings["resolution"])
+        if "COLOR_ATTRIBUTE" in settings["targets"]:
+            report["warnings"].append(f"object '{n}': albedo averaged in the colour attribute (per corner, with "
+                                      f"the material's mean albedo); the lightmap follows the texture per texel")
+    maps, seconds = albedo.bake_albedo(scene, view_layer, jobs, settings["margin"])
+    if jobs:
+        report["times"]["albedo_bake"] = seconds
+        report["notes"].append(f"albedo followed per texel (Cycles Color bake, {seconds:.2f} s) for: "
+                               f"{', '.join(jobs)}; their bounced light uses each material's mean albedo")
+    return maps
 
 
 def remove_bake(ob):

@@ -282,7 +282,7 @@ void bindSolver(py::module_& m) {
                  return out;
              })
         .def("radiance",
-             [](const Solution& s, py::object points, py::object normals) {
+             [](const Solution& s, py::object points, py::object normals, bool irradiance) {
                  auto p = checked<float>(points, "points", {-1, 3});
                  auto n = checked<float>(normals, "normals", {-1, 3});
                  if (p.shape(0) != n.shape(0)) throw py::value_error("points and normals differ in length");
@@ -295,15 +295,16 @@ void bindSolver(py::module_& m) {
                  std::vector<float> out;
                  {
                      py::gil_scoped_release nogil;
-                     out = s.radiance(pp, np, count);
+                     out = s.radiance(pp, np, count, irradiance);
                  }
                  Array<float> result({py::ssize_t(count), py::ssize_t(3)});
                  std::copy(out.begin(), out.end(), result.mutable_data());
                  return result;
              },
-             py::arg("points"), py::arg("normals"))
+             py::arg("points"), py::arg("normals"), py::arg("irradiance") = false)
         .def("bake_lightmap",
-             [](const Solution& s, py::object positions, py::object uvs, int width, int height, int margin) {
+             [](const Solution& s, py::object positions, py::object uvs, int width, int height, int margin,
+                bool irradiance) {
                  auto p = checked<float>(positions, "positions", {-1, 3, 3});
                  auto u = checked<float>(uvs, "uvs", {-1, 3, 2});
                  if (p.shape(0) != u.shape(0)) throw py::value_error("positions and uvs differ in length");
@@ -321,6 +322,7 @@ void bindSolver(py::module_& m) {
                  in.width = width;
                  in.height = height;
                  in.margin = margin;
+                 in.irradiance = irradiance;
                  std::vector<float> img;
                  {
                      py::gil_scoped_release nogil;
@@ -330,7 +332,8 @@ void bindSolver(py::module_& m) {
                  std::copy(img.begin(), img.end(), result.mutable_data());
                  return result;
              },
-             py::arg("positions"), py::arg("uvs"), py::arg("width"), py::arg("height"), py::arg("margin") = 4);
+             py::arg("positions"), py::arg("uvs"), py::arg("width"), py::arg("height"), py::arg("margin") = 4,
+             py::arg("irradiance") = false);
 
     m.def(
         "solve",

@@ -218,14 +218,14 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     return sol;
 }
 
-std::vector<float> Solution::radiance(const float* points, const float* normals, size_t n) const {
+std::vector<float> Solution::radiance(const float* points, const float* normals, size_t n, bool irradiance) const {
     std::vector<float> out(n * 3);
     const Vec3 off = scene_->offset;
     parallelFor(n, threads_, 1024, [&](size_t b, size_t e, int) {
         for (size_t i = b; i < e; ++i) {
             Vec3 p{points[i * 3], points[i * 3 + 1], points[i * 3 + 2]};
             Vec3 nn{normals[i * 3], normals[i * 3 + 1], normals[i * 3 + 2]};
-            Rgb r = field_.radiance(p - off, normalize(nn));
+            Rgb r = field_.radiance(p - off, normalize(nn), irradiance);
             out[i * 3] = float(r.x);
             out[i * 3 + 1] = float(r.y);
             out[i * 3 + 2] = float(r.z);

@@ -38,8 +38,9 @@ struct Report {
 class Solution {
 public:
     const Report& report() const { return report_; }
-    // Outgoing reflected radiance (B - B_e)/pi at world-space points, n x 3 each.
-    std::vector<float> radiance(const float* points, const float* normals, size_t n) const;
+    // Outgoing reflected radiance (B - B_e)/pi at world-space points, n x 3 each; with `irradiance`, the
+    // arriving light E/pi without the albedo (RadianceField::radiance).
+    std::vector<float> radiance(const float* points, const float* normals, size_t n, bool irradiance = false) const;
     // Throws BudgetExceeded for images over Settings::maxTexels.
     std::vector<float> bakeLightmap(const LightmapInput& in) const;
     const Scene& scene() const { return *scene_; }

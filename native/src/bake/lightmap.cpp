@@ -132,7 +132,7 @@ std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput&
                 a -= offset; b -= offset; c -= offset;
                 Vec3 n = normalize(cross(b - a, c - a));
                 Vec3 p = a * s.b0 + b * s.b1 + c * s.b2;
-                Rgb r = field.radiance(p, n);
+                Rgb r = field.radiance(p, n, in.irradiance);
                 rgba[i * 4] = float(r.x);
                 rgba[i * 4 + 1] = float(r.y);
                 rgba[i * 4 + 2] = float(r.z);

@@ -14,6 +14,7 @@ struct LightmapInput {
     const float* uvs = nullptr;        // T x 3 x 2
     size_t triangles = 0;
     int width = 0, height = 0, margin = 0;
+    bool irradiance = false;  // E/pi without the surface's albedo (RadianceField::radiance)
 };
 
 // Returns height x width x 4 floats, rows bottom-to-top (v = 0 first), alpha 1 everywhere.

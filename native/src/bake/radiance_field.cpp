@@ -133,6 +133,7 @@ void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured, c
         if (shadowed)
             for (int c = 0; c < 3; ++c)
                 if ((*unoccluded)[i][c] > 0) l.vis[c] = std::clamp((*shadowed)[i][c] / (*unoccluded)[i][c], 0.0, 1.0);
+        for (int c = 0; c < 3; ++c) l.invRho[c] = p.rho[c] > 0 ? 1.0 / p.rho[c] : 0.0;
         l.group = conv_.polygonGroup(e.polygon);
         l.surface = p.surface;
         leaves_.push_back(l);
@@ -199,14 +200,15 @@ int RadianceField::locate(const Vec3& p, const Vec3& n) const {
     return best;
 }
 
-Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
+Rgb RadianceField::radiance(const Vec3& p, const Vec3& n, bool irradiance) const {
     int poly = locate(p, n);
     int surface = poly >= 0 ? scene_->polygons[size_t(poly)].surface : -1;
     bool gather = direct_ && poly >= 0;
     int group = 0;
-    Rgb detail = conv_.empty() ? Rgb{} : conv_.radiance(p, n, &group);
+    Rgb detail = conv_.empty() ? Rgb{} : conv_.radiance(p, n, &group, irradiance);
     Rgb vis{1, 1, 1};
-    Rgb out = smooth(p, n, group, surface, gather, gather && !direct_->castsRays() ? &vis : nullptr) + detail;
+    Rgb out = smooth(p, n, group, surface, gather, gather && !direct_->castsRays() ? &vis : nullptr, irradiance) +
+              detail;
     if (gather) {
         const ScenePolygon& sp = scene_->polygons[size_t(poly)];
         // A point on the polygon's edge lies in the plane of the face meeting it there (the wall
@@ -219,13 +221,21 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n) const {
         toward = toward - sp.normal * dot(toward, sp.normal);
         double len = length(toward), nudge = nudge_;
         Vec3 q = len > nudge ? p + toward * (nudge / len) : p;
-        out += mul(mul(sp.rho, vis), direct_->irradiance(q, sp.normal, poly)) * (1.0 / M_PI);
-        if (lights_) out += mul(sp.rho, lights_->irradiance(q, sp.normal)) * (1.0 / M_PI);
+        const Rgb rho = irradiance ? Rgb{1, 1, 1} : sp.rho;
+        out += mul(mul(rho, vis), direct_->irradiance(q, sp.normal, poly)) * (1.0 / M_PI);
+        if (lights_) out += mul(rho, lights_->irradiance(q, sp.normal)) * (1.0 / M_PI);
     }
     return out;
 }
 
-Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis) const {
+Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis,
+                          bool irradiance) const {
+    // A leaf's value is rho * E / pi with its own polygon's rho: dividing before the blend keeps a seam
+    // between two materials of one surface from mixing one's albedo into the other's light.
+    auto val = [&](const Leaf& l) {
+        Rgb v = indirectOnly ? l.indirect : l.value;
+        return irradiance ? mul(v, l.invRho) : v;
+    };
     Rgb sum, vsum;
     double wsum = 0;
     auto containsP = [&](const Bounds& b) { return contains(b, p); };
@@ -234,7 +244,7 @@ Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, 
         if (l.group != group || (surface >= 0 && l.surface != surface) || !contains(l.support, p)) return;
         double w = weight(l, p, n);
         if (w > 0) {
-            sum += (indirectOnly ? l.indirect : l.value) * w;
+            sum += val(l) * w;
             vsum += l.vis * w;
             wsum += w;
         }
@@ -272,7 +282,7 @@ Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, 
         });
         if (bestLeaf >= 0 && best <= r * r) {
             if (vis) *vis = leaves_[bestLeaf].vis;
-            return indirectOnly ? leaves_[bestLeaf].indirect : leaves_[bestLeaf].value;
+            return val(leaves_[bestLeaf]);
         }
     }
     return Rgb{};

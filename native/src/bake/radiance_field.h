@@ -34,7 +34,11 @@ public:
                   std::shared_ptr<const DirectLight> direct, std::shared_ptr<const LightSet> lights = nullptr,
                   const std::vector<Rgb>& lightE = {});
     // p in the scene's recentred coordinates; n the geometric normal of the surface at p.
-    Rgb radiance(const Vec3& p, const Vec3& n) const;
+    // With `irradiance`: E/pi, the light arriving at p without the surface's albedo (what a bake with a
+    // per-texel albedo multiplies). Each leaf's value is divided by its own polygon's albedo before the
+    // blend; a channel whose albedo is 0 reflected nothing, so it keeps only the light the final gather
+    // evaluates at the point (emitters and lamps) and loses its share of the indirect light.
+    Rgb radiance(const Vec3& p, const Vec3& n, bool irradiance = false) const;
 
 private:
     struct Leaf {
@@ -44,6 +48,7 @@ private:
         double reach;                 // |e1| + |e2|: no corner is further from the centre
         Rgb value;                    // (B - E) / pi, less what convolution links give it
         Rgb indirect;                 // value less what the leaf's links bring straight from emitters
+        Rgb invRho;                   // 1/rho of its polygon per channel, 0 where rho is 0
         Rgb vis;                      // visible fraction of the emitters' light at the leaf, as linked
         int group = 0;                // ConvolutionField's group of its polygon: blends only within it
         int surface = -1;             // connected surface of its polygon: blends only within it
@@ -53,7 +58,8 @@ private:
               const std::vector<Rgb>* unoccluded, const std::vector<Rgb>* lightE = nullptr);
     // The blend of the leaves of one convolution group and (surface >= 0) one connected surface;
     // with `vis`, also the blend of their visibilities.
-    Rgb smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis = nullptr) const;
+    Rgb smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis = nullptr,
+               bool irradiance = false) const;
     // The receiving polygon p lies on (normal within 26 degrees of n), or -1.
     int locate(const Vec3& p, const Vec3& n) const;
     double weight(const Leaf& l, const Vec3& p, const Vec3& n) const;

@@ -152,7 +152,7 @@ ConvolutionField::ConvolutionField(const Hierarchy& h, const std::vector<Convolu
     boxes_ = BoxTree(std::move(boxes));
 }
 
-Rgb ConvolutionField::radiance(const Vec3& p, const Vec3& n, int* group) const {
+Rgb ConvolutionField::radiance(const Vec3& p, const Vec3& n, int* group, bool irradiance) const {
     *group = 0;
     if (links_.empty()) return {};
     const Scene& sc = *scene_;
@@ -175,6 +175,7 @@ Rgb ConvolutionField::radiance(const Vec3& p, const Vec3& n, int* group) const {
     if (face < 0) return {};
     *group = polyGroup_[size_t(face)];
     const ScenePolygon& rp = sc.polygons[size_t(face)];
+    const Rgb rho = irradiance ? Rgb{1, 1, 1} : rp.rho;
     Rgb out;
     thread_local std::vector<double> f;  // per texel: no allocation once the buffer has grown
     for (int li : groups_[size_t(*group - 1)]) {
@@ -183,7 +184,7 @@ Rgb ConvolutionField::radiance(const Vec3& p, const Vec3& n, int* group) const {
         convolutionFactors(sc, l, p, rp.normal, f.data());
         Rgb irr;
         for (size_t k = 0; k < f.size(); ++k) irr += sourceB_[size_t(li)][k] * f[k];
-        out += mul(rp.rho, irr) * (1.0 / M_PI);
+        out += mul(rho, irr) * (1.0 / M_PI);
     }
     return out;
 }

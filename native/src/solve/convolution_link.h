@@ -75,8 +75,9 @@ public:
     bool empty() const { return links_.empty(); }
     int polygonGroup(int polygon) const { return polyGroup_.empty() ? 0 : polyGroup_[size_t(polygon)]; }
     // The links' radiance at p (on the lowest-numbered receiver face holding it, so a point on an edge
-    // counts once), and that face's group in `group` (0 off every receiver).
-    Rgb radiance(const Vec3& p, const Vec3& n, int* group) const;
+    // counts once), and that face's group in `group` (0 off every receiver). With `irradiance`, I(y)/pi
+    // without the receiver's rho.
+    Rgb radiance(const Vec3& p, const Vec3& n, int* group, bool irradiance = false) const;
 
 private:
     const Scene* scene_ = nullptr;
