@@ -22,6 +22,7 @@ import time
 import bpy
 import numpy as np
 
+from . import compat
 from .materials import parse_material
 from .preview import preview_off, preview_on, set_preview
 from .writeback import baked_state
@@ -148,7 +149,7 @@ def _read_exr(path):
 def _render(scene, path):
     """Render the scene camera into a multilayer EXR and read back Combined (RGBA) and Emit (RGB)."""
     im = scene.render.image_settings
-    im.file_format = "OPEN_EXR_MULTILAYER"
+    compat.multilayer_exr(im)
     im.color_depth = "32"
     im.exr_codec = "ZIP"
     scene.render.use_file_extension = False
@@ -376,7 +377,7 @@ def cycles_lightmaps(scene, jobs, samples, seed=0, bounces=32, margin=4):
                 images[name] = img
                 for slot in ob.material_slots:
                     mat = slot.material
-                    if mat is None or not mat.use_nodes:
+                    if mat is None or not compat.uses_nodes(mat):
                         raise ValueError(f"{name}: Cycles can bake only objects whose material slots all hold "
                                          f"node materials")
                     nt = mat.node_tree

@@ -7,6 +7,7 @@ after a save and reload too.
 """
 import bpy
 
+from . import compat
 from .materials import parse_material
 from .writeback import ATTRIBUTE, baked_state
 
@@ -26,9 +27,9 @@ def _object_level_material(slot):
 
 def _make_material(name, state, original):
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
+    compat.enable_nodes(mat)
     # The preview only shows stored light; letting Cycles sample it as a light would only add noise.
-    mat.cycles.sample_as_light = False
+    compat.no_light_sampling(mat)
     nt = mat.node_tree
     nt.nodes.clear()
     out = nt.nodes.new("ShaderNodeOutputMaterial")
@@ -109,7 +110,7 @@ def _restore(ob, slots, made, added):
     if added and len(ob.material_slots):
         # Mesh.materials.pop() leaves the object's own slot count behind; the operator removes both.
         ob.active_material_index = len(ob.material_slots) - 1
-        with bpy.context.temp_override(object=ob):
+        with bpy.context.temp_override(**compat.override_object(ob)):
             bpy.ops.object.material_slot_remove()
 
 
