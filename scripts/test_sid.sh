@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The sid leg of scripts/test.sh: every test again inside a Debian sid root (Blender 5.x, Python 3.14, Embree 4,
+# The sid leg of scripts/test.sh: every test, then the main job, again inside a Debian sid root (Blender 5.x, Python 3.14, Embree 4,
 # OpenImageIO 3, no OSMesa). The root is made or reused by scripts/sid_root.sh; this work tree is copied into
 # it (its build directories there are kept, so a reused root builds incrementally) and scripts/test.sh runs
 # inside it under chroot. Its exit code is this script's.
@@ -39,7 +39,8 @@ mount -t tmpfs tmpfs "$SID_ROOT/tmp"; mounted+=("$SID_ROOT/tmp")
 set +e
 chroot "$SID_ROOT" /usr/bin/env -i HOME=/root LANG=C.UTF-8 TERM="${TERM:-dumb}" CI="${CI:-}" \
   PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin PENUMBRA_SKIP_SID=1 \
-  bash -c "cd $SRC && bash scripts/test.sh"
+  bash -c "cd $SRC && bash scripts/test.sh && echo '== sid leg: the main job (scripts/bake_example.sh)' &&
+           bash scripts/bake_example.sh /tmp/cornell"
 status=$?
 set -e
 echo "== sid leg: exit $status after $(( $(date +%s) - start )) s"
