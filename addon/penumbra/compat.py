@@ -24,6 +24,23 @@ def principled(node, name):
     return socket(node, renamed[name], name) if name in renamed else node.inputs[name]
 
 
+def light_casts_shadow(light):
+    """Cycles' per-light shadow switch: light.cycles.cast_shadow in 3.x; 5.2 has only Light.use_shadow, and
+    reading the old name with a default silently took every light as shadowing."""
+    cyc = getattr(light, "cycles", None)
+    if cyc is not None and hasattr(cyc, "cast_shadow"):
+        return bool(cyc.cast_shadow)
+    return bool(getattr(light, "use_shadow", True))
+
+
+def set_light_casts_shadow(light, on):
+    cyc = getattr(light, "cycles", None)
+    if cyc is not None and hasattr(cyc, "cast_shadow"):
+        cyc.cast_shadow = on
+    else:
+        light.use_shadow = on
+
+
 def uses_nodes(mat):
     """Whether a material (or world) renders from its node tree. 5.0 made every one node-based and deprecated
     use_nodes, whose setter no longer does anything there."""

@@ -193,8 +193,7 @@ def _polygon_area(p):
 def _cast_shadow(light):
     # Cycles' own settings are an add-on property group, which a change does not re-evaluate: read the original.
     light = getattr(light, "original", None) or light
-    cyc = getattr(light, "cycles", None)
-    return bool(getattr(cyc, "cast_shadow", True)) if cyc is not None else bool(getattr(light, "use_shadow", True))
+    return compat.light_casts_shadow(light)
 
 
 def lamp_light(light, matrix, name, index):
