@@ -10,6 +10,13 @@ import cornell_box
 ADDON_DIR = os.environ.get("PENUMBRA_ADDON_DIR", "")
 
 
+def _own_traceback(stderr):
+    """A Python traceback in the CLI's stderr other than sid's Blender printing one at every start from its
+    bundled bl_pkg add-on (python3-cattrs is not packaged there)."""
+    blocks = stderr.split("Traceback (most recent call last):")[1:]
+    return any("bl_pkg" not in b for b in blocks)
+
+
 def _run(blend, *args):
     cli = os.path.join(ADDON_DIR, "penumbra", "cli.py")
     cmd = ["blender", "-b", blend, "--factory-startup", "--python-exit-code", "1", "--python", cli, "--", *args]
@@ -113,13 +120,13 @@ def test_cli_out_naming_a_file_and_unwritable_save_exit_with_the_documented_code
     a_file.write_text("x")
     r = _run(blend, "--out", str(a_file), "--resolution", "16")
     assert r.returncode == 2, r.stderr[-2000:]
-    assert "is a file" in r.stderr and "Traceback" not in r.stderr
+    assert "is a file" in r.stderr and not _own_traceback(r.stderr)
     assert a_file.read_text() == "x"
     for save in (str(tmp_path / "missing" / "x.blend"), str(tmp_path)):
         out = tmp_path / "o"
         r = _run(blend, "--out", str(out), "--resolution", "16", "--save", save)
         assert r.returncode == 2, r.stderr[-2000:]
-        assert "Traceback" not in r.stderr and "--save" in r.stderr
+        assert not _own_traceback(r.stderr) and "--save" in r.stderr
         report = json.loads((out / "report.json").read_text())
         assert report["exit_code"] == 2 and "--save" in report["error"]
         # Refused before the bake: no lightmap was written for a run that failed.

@@ -8,7 +8,7 @@ import pytest
 
 import cornell_box
 import helpers
-from penumbra import export, materials
+from penumbra import compat, export, materials
 
 
 def _export(scene, **kw):
@@ -120,7 +120,7 @@ def test_material_parsing(empty_scene):
     mat.use_nodes = True
     bsdf = mat.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (0.2, 0.4, 0.6, 1)
-    bsdf.inputs["Emission"].default_value = (1.0, 0.5, 0.0, 1)
+    compat.principled(bsdf, "Emission").default_value = (1.0, 0.5, 0.0, 1)
     bsdf.inputs["Emission Strength"].default_value = 3.0
     info = materials.parse_material(mat)
     assert np.allclose(info.albedo, (0.2, 0.4, 0.6)) and np.allclose(info.radiance, (3.0, 1.5, 0.0))

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import helpers
+from penumbra import compat
 
 ALBEDO = (0.5, 0.6, 0.7)
 RES = 48
@@ -128,7 +129,7 @@ def test_cast_shadow_off_lets_light_through(empty_scene, penumbra):
     _, got, pos = _bake_plane(penumbra, empty_scene)
     under = np.hypot(pos[:, 0], pos[:, 1]) < 0.3
     assert under.sum() > 10 and got[under].max() == 0
-    ob.data.cycles.cast_shadow = False
+    compat.set_light_casts_shadow(ob.data, False)
     _, got, pos = _bake_plane(penumbra, empty_scene)
     d = np.asarray(ob.location)[None, :] - pos
     d2 = (d ** 2).sum(axis=1)

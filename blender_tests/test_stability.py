@@ -9,6 +9,7 @@ from mathutils import Matrix
 import cornell_box
 import scenes
 from helpers import image_pixels
+from penumbra import compat
 
 RES = 48
 
@@ -78,9 +79,9 @@ def glowing_white(albedo, strength):
     mat.use_nodes = True
     p = mat.node_tree.nodes["Principled BSDF"]
     p.inputs["Base Color"].default_value = (albedo, albedo, albedo, 1.0)
-    p.inputs["Emission"].default_value = (1.0, 1.0, 1.0, 1.0)
+    compat.principled(p, "Emission").default_value = (1.0, 1.0, 1.0, 1.0)
     p.inputs["Emission Strength"].default_value = strength
-    p.inputs["Specular"].default_value = 0.0
+    compat.principled(p, "Specular").default_value = 0.0
     p.inputs["Roughness"].default_value = 0.0
     return mat
 

@@ -39,6 +39,11 @@ def _native_mismatch(err):
             f"(bash scripts/build.sh, or cmake -DPython_EXECUTABLE=<that python>).")
 
 
+# Installed as a 4.2+ extension this package is bl_ext.<repository>.penumbra; the documented API (and the
+# operators' own late imports) say `import penumbra`, so that name is made to point here too.
+if __name__ != "penumbra" and "penumbra" not in sys.modules:
+    sys.modules["penumbra"] = sys.modules[__name__]
+
 try:
     from . import _native
 except ImportError as _e:
@@ -256,10 +261,11 @@ class _object_mode:
 
 
 def _opted_out(ob):
-    # Read the stored value rather than ob.penumbra_settings.bake: touching the registered group creates it on
-    # the object, and a bake must not change objects it does not write to. Unset means the default, True.
-    group = ob.get("penumbra_settings")
-    return group is not None and not group.get("bake", True)
+    # Reading ob.penumbra_settings creates the group on the object, and a bake must not change objects it does
+    # not write to: look first whether it is set. (3.x also showed it as ob["penumbra_settings"]; 5.0 does not.)
+    if not ob.is_property_set("penumbra_settings"):
+        return False
+    return not ob.penumbra_settings.bake
 
 
 def begin(scene=None, progress=None, **settings):
@@ -434,3 +440,5 @@ def unregister():
     panels.unregister()
     operators.unregister()
     properties.unregister()
+    if __name__ != "penumbra" and sys.modules.get("penumbra") is sys.modules.get(__name__):
+        del sys.modules["penumbra"]

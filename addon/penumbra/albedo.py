@@ -17,6 +17,7 @@ import time
 import bpy
 import numpy as np
 
+from . import compat
 from .materials import albedo_varies
 
 # Samples per texel of the Color bake. Cycles' DIFFUSE bake spreads its samples over each texel, so a texel that
@@ -45,7 +46,7 @@ def needs_bake(ob):
 def why_not(ob):
     """Why Cycles cannot bake the albedo of `ob` (a slot without a node material), or None."""
     for i, m in enumerate(own_materials(ob) or [None]):
-        if m is None or not m.use_nodes or m.node_tree is None:
+        if m is None or not compat.uses_nodes(m):
             return f"material slot {i + 1} holds no node material"
     return None
 

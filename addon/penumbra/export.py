@@ -11,6 +11,7 @@ import math
 import bpy
 import numpy as np
 
+from . import compat
 from .materials import image_rgb, parse_material
 
 PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writeback, which needs bpy data)
@@ -192,8 +193,7 @@ def _polygon_area(p):
 def _cast_shadow(light):
     # Cycles' own settings are an add-on property group, which a change does not re-evaluate: read the original.
     light = getattr(light, "original", None) or light
-    cyc = getattr(light, "cycles", None)
-    return bool(getattr(cyc, "cast_shadow", True)) if cyc is not None else bool(getattr(light, "use_shadow", True))
+    return compat.light_casts_shadow(light)
 
 
 def lamp_light(light, matrix, name, index):
@@ -250,7 +250,7 @@ def _world_value(scene):
     w = scene.world
     if w is None:
         return None, None
-    if not (w.use_nodes and w.node_tree is not None):
+    if not compat.uses_nodes(w):
         c = np.array(w.color[:3], np.float64)
         return (tuple(c) if (c > 0).any() else None), None
     out = w.node_tree.get_output_node("CYCLES")

@@ -8,6 +8,8 @@ import math
 
 import numpy as np
 
+from . import compat
+
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
 # The solver needs albedo < 1 to converge; an albedo of exactly 1 is a modelling shortcut, not a physical value.
 MAX_ALBEDO = 0.999
@@ -113,10 +115,10 @@ def _shader(node, info, depth=0):
         return _color(node.inputs["Color"], info, "Diffuse BSDF Color"), (0.0, 0.0, 0.0)
     if t == "BSDF_PRINCIPLED":
         base = _color(node.inputs["Base Color"], info, "Principled Base Color")
-        ec = _color_or_zero(node.inputs["Emission"], info, "Principled Emission")
+        ec = _color_or_zero(compat.principled(node, "Emission"), info, "Principled Emission")
         s = _scalar(node.inputs["Emission Strength"], info, "Principled Emission Strength")
         metallic = node.inputs["Metallic"]
-        transmission = node.inputs["Transmission"]
+        transmission = compat.principled(node, "Transmission")
         if metallic.is_linked or metallic.default_value > 0 or transmission.is_linked or \
                 transmission.default_value > 0:
             info.notes.append("Principled BSDF with metallic or transmission is treated as its diffuse part")
@@ -165,7 +167,7 @@ def parse_material(mat):
     """MaterialInfo for a material (None = no material: Cycles renders it 0.8 grey)."""
     if mat is None:
         return MaterialInfo()
-    if not mat.use_nodes or mat.node_tree is None:
+    if not compat.uses_nodes(mat):
         info = MaterialInfo(tuple(mat.diffuse_color)[:3])
         return _clamped(info)
     info = MaterialInfo()
@@ -223,7 +225,7 @@ def albedo_varies(mat):
     node on the diffuse colour (Diffuse Color, Principled Base Color, Metallic or Transmission) or on the
     factor of a Mix Shader on the way to the output. Such a material's albedo is followed per texel by
     baking it (albedo.py); a constant one is what parse_material reads."""
-    if mat is None or not mat.use_nodes or mat.node_tree is None:
+    if mat is None or not compat.uses_nodes(mat):
         return False
     out = mat.node_tree.get_output_node("CYCLES")
     if out is None:
@@ -277,6 +279,6 @@ def emission_input(node_tree):
 
 def emission_varies(mat):
     """Whether the emission colour of `mat` comes from a node other than an RGB node (an emission texture)."""
-    if mat is None or not mat.use_nodes or mat.node_tree is None:
+    if mat is None or not compat.uses_nodes(mat):
         return False
     return _varies(emission_input(mat.node_tree)[0])

@@ -7,6 +7,7 @@ after a save and reload too.
 """
 import bpy
 
+from . import compat
 from .materials import albedo_input, emission_input, emission_varies, parse_material
 from .writeback import ATTRIBUTE, baked_state
 
@@ -38,9 +39,9 @@ def _copied_material(name, original):
     Returns (material, the socket that fed the diffuse colour, or None; the constant colour to use when there
     is no such socket; the copy's emission colour and strength inputs, or None)."""
     const = parse_material(original).albedo
-    if original is None or not original.use_nodes or original.node_tree is None:
+    if original is None or not compat.uses_nodes(original):
         mat = bpy.data.materials.new(name)
-        mat.use_nodes = True
+        compat.enable_nodes(mat)
         mat.node_tree.nodes.clear()
         return mat, None, const, (None, None)
     mat = original.copy()
@@ -65,10 +66,10 @@ def _make_material(name, state, original):
     else:
         colour = strength = None
         mat = bpy.data.materials.new(name)
-        mat.use_nodes = True
+        compat.enable_nodes(mat)
         mat.node_tree.nodes.clear()
     # The preview only shows stored light; letting Cycles sample it as a light would only add noise.
-    mat.cycles.sample_as_light = False
+    compat.no_light_sampling(mat)
     nt = mat.node_tree
     out = nt.nodes.new("ShaderNodeOutputMaterial")
     out.location = (600, 0)
@@ -175,7 +176,7 @@ def _restore(ob, slots, made, added):
     if added and len(ob.material_slots):
         # Mesh.materials.pop() leaves the object's own slot count behind; the operator removes both.
         ob.active_material_index = len(ob.material_slots) - 1
-        with bpy.context.temp_override(object=ob):
+        with bpy.context.temp_override(**compat.override_object(ob)):
             bpy.ops.object.material_slot_remove()
 
 

@@ -14,6 +14,8 @@ import zlib
 import bpy
 import numpy as np
 
+from . import compat
+
 UV_NAME = "PenumbraLightmap"
 ATTRIBUTE = "Penumbra"
 IMAGE_PREFIX = "Penumbra_"
@@ -183,10 +185,12 @@ def _prepare_uv(ob, scene, view_layer, uv_setting, tx):
 
     layers.active = layer
     flags = _element_flags(me)
+    attrs_before = compat.mesh_attribute_names(me)
     try:
         _unwrap(ob, scene, view_layer)
     finally:
         _restore_element_flags(me, flags)
+        compat.drop_new_internal_attributes(me, attrs_before)
         if old_active and old_active in layers:
             layers.active = layers[old_active]
         if old_render and old_render in layers:

@@ -51,6 +51,51 @@ def write_result():
         json.dump(result, f, indent=1)
 
 
+def _png_is_black(path):
+    img = bpy.data.images.load(os.path.abspath(path), check_existing=False)
+    try:
+        import numpy as np
+        px = np.empty(img.size[0] * img.size[1] * img.channels, np.float32)
+        img.pixels.foreach_get(px)
+        rgb = px.reshape(-1, img.channels)[:, :3]
+        return float(rgb.max()) == 0.0
+    finally:
+        bpy.data.images.remove(img)
+
+
+def _xvfb_framebuffer_png(xwd_path, png_path):
+    """Writes Xvfb's memory framebuffer (an XWD file from `Xvfb -fbdir`, 24-bit TrueColor, 32 bits a pixel)
+    as a PNG. False when the file is missing or not in that form."""
+    import numpy as np
+    try:
+        data = open(xwd_path, "rb").read()
+    except OSError:
+        return False
+    hdr = np.frombuffer(data[:100], ">u4")
+    header_size, depth, w, h, bits_per_pixel, bytes_per_line, ncolors = (
+        int(hdr[0]), int(hdr[3]), int(hdr[4]), int(hdr[5]), int(hdr[11]), int(hdr[12]), int(hdr[19]))
+    if depth != 24 or bits_per_pixel != 32:
+        return False
+    off = header_size + 12 * ncolors
+    raw = np.frombuffer(data[off:off + bytes_per_line * h], np.uint8)
+    if raw.size != bytes_per_line * h:
+        return False
+    bgrx = raw.reshape(h, bytes_per_line)[:, :4 * w].reshape(h, w, 4)
+    rgba = np.empty((h, w, 4), np.float32)
+    rgba[..., 0], rgba[..., 1], rgba[..., 2] = bgrx[..., 2], bgrx[..., 1], bgrx[..., 0]
+    rgba[..., :3] /= 255.0
+    rgba[..., 3] = 1.0
+    img = bpy.data.images.new("penumbra_xvfb_shot", w, h, alpha=False)
+    try:
+        img.pixels.foreach_set(rgba[::-1].ravel())   # Blender's rows run bottom to top
+        img.filepath_raw = os.path.abspath(png_path)
+        img.file_format = "PNG"
+        img.save()
+    finally:
+        bpy.data.images.remove(img)
+    return True
+
+
 # --------------------------------------------------------------------------------------------- set-up
 bpy.context.preferences.view.show_splash = False       # the splash would cover the window in the screenshot
 addon_dir = os.environ.get("PENUMBRA_ADDON_DIR", os.path.join(REPO, "build", "addon"))
@@ -228,6 +273,13 @@ def script():
     os.makedirs(os.path.dirname(os.path.abspath(args.screenshot)), exist_ok=True)
     with bpy.context.temp_override(**ctx):
         bpy.ops.screen.screenshot(filepath=os.path.abspath(args.screenshot))
+    result["screenshot_source"] = "blender"
+    if _png_is_black(args.screenshot):
+        # Blender 5.x under Xvfb + llvmpipe reads its own window back as black although the window is drawn
+        # (the X framebuffer holds it): take what the X server shows instead.
+        fb = os.environ.get("PENUMBRA_XVFB_FBDIR")
+        if fb and _xvfb_framebuffer_png(os.path.join(fb, "Xvfb_screen0"), args.screenshot):
+            result["screenshot_source"] = "xvfb framebuffer"
     result["screenshot"] = os.path.abspath(args.screenshot)
     log("screenshot", path=result["screenshot"])
     result["ok"] = not result["errors"]

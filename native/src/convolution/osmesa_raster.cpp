@@ -1,5 +1,7 @@
 #include "convolution/osmesa_raster.h"
 
+#if PENUMBRA_HAVE_OSMESA
+
 // Prototypes are only needed for decltype(); no gl* symbol is ever referenced (see header).
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/osmesa.h>
@@ -205,3 +207,25 @@ void OSMesaRasterizer::rasterize(const PolygonSet& polys, const PixelGrid& g, fl
 }
 
 }  // namespace penumbra
+
+#else  // built without OSMesa (Debian sid's Mesa has none): the class exists so callers and tests still link
+
+#include <stdexcept>
+#include <string>
+
+namespace penumbra {
+
+namespace {
+[[noreturn]] void noOSMesa() {
+    throw std::runtime_error(
+        "this build has no OSMesa (Mesa 25.1 and later ship none); use the span rasterizer (rasterizer='span')");
+}
+}  // namespace
+
+OSMesaRasterizer::OSMesaRasterizer(int samples) : samples_(samples) { noOSMesa(); }
+std::string OSMesaRasterizer::rendererName() { noOSMesa(); }
+void OSMesaRasterizer::rasterize(const PolygonSet&, const PixelGrid&, float*) { noOSMesa(); }
+
+}  // namespace penumbra
+
+#endif

@@ -84,8 +84,6 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
         for (int k = 0; k < p.geom.n && n < 5; ++k) pts[n++] = (c + p.geom.v[k]) * 0.5;
         bool inside = true;
         for (int k = 0; k < n && inside; ++k) {
-            RTCIntersectContext ctx;
-            rtcInitIntersectContext(&ctx);
             RTCRayHit rh{};
             Vec3 o = pts[k] + p.normal * lift;
             rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
@@ -94,7 +92,13 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
             rh.ray.tfar = float(far);
             rh.ray.mask = 0xFFFFFFFF;
             rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+#if PENUMBRA_EMBREE_MAJOR >= 4
+            rtcIntersect1(scene_, &rh);
+#else
+            RTCIntersectContext ctx;
+            rtcInitIntersectContext(&ctx);
             rtcIntersect1(scene_, &ctx, &rh);
+#endif
             // Met from behind: the ray started inside a closed surface. Nothing met: open sky.
             inside = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID &&
                      dot(scene.polygons[size_t(triPolygon_[rh.hit.primID])].normal, p.normal) > 0;
@@ -120,9 +124,16 @@ namespace {
 // single rays here) and reports each one's visibility to visible(k, bool).
 template <class Segment, class Visible>
 void castPackets(RTCScene scene, int n, Segment segment, Visible visible) {
+    // Embree 4 moved the coherence hint from the intersect context to the query arguments.
+#if PENUMBRA_EMBREE_MAJOR >= 4
+    RTCOccludedArguments args;
+    rtcInitOccludedArguments(&args);
+    args.flags = RTC_RAY_QUERY_FLAG_COHERENT;
+#else
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+#endif
     for (int base = 0; base < n; base += 16) {
         alignas(64) RTCRay16 rays;
         alignas(64) int valid[16];
@@ -144,7 +155,11 @@ void castPackets(RTCScene scene, int n, Segment segment, Visible visible) {
             rays.id[i] = 0;
             rays.flags[i] = 0;
         }
+#if PENUMBRA_EMBREE_MAJOR >= 4
+        rtcOccluded16(valid, scene, &rays, &args);
+#else
         rtcOccluded16(valid, scene, &ctx, &rays);
+#endif
         for (int i = 0; i < 16 && base + i < n; ++i) visible(base + i, rays.tfar[i] >= 0.0f);
     }
 }

@@ -1,6 +1,11 @@
-// Occlusion queries with Embree 3 over every occluding polygon of the scene.
+// Occlusion queries with Embree (3 on Debian 12, 4 on Debian 13 and sid) over every occluding polygon of the scene.
 #pragma once
+// CMakeLists.txt defines PENUMBRA_EMBREE_MAJOR from the Embree package it found.
+#if PENUMBRA_EMBREE_MAJOR >= 4
+#include <embree4/rtcore.h>
+#else
 #include <embree3/rtcore.h>
+#endif
 
 #include <vector>
 

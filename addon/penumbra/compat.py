@@ -1,0 +1,98 @@
+"""The bpy differences between the Blender versions Penumbra supports (3.4 in Debian 12, 4.3 in Debian 13,
+5.x in sid), each in one place so the rest of the add-on reads the same on all of them. Each helper names the
+version that changed the API; docs/blender-versions.md lists them with how each was found."""
+import bpy
+
+VERSION = bpy.app.version
+
+
+def socket(node, *names):
+    """The first of `names` that `node` has as an input: Principled BSDF sockets were renamed in 4.0
+    ('Emission' became 'Emission Color', 'Transmission' became 'Transmission Weight', ...)."""
+    for name in names:
+        s = node.inputs.get(name)
+        if s is not None:
+            return s
+    raise KeyError(f"node '{node.name}' ({node.bl_idname}) has none of the inputs {', '.join(names)}")
+
+
+def principled(node, name):
+    """A Principled BSDF input under its 3.x name, looked up under its 4.0+ name where that differs."""
+    renamed = {"Emission": "Emission Color", "Transmission": "Transmission Weight",
+               "Specular": "Specular IOR Level", "Subsurface": "Subsurface Weight",
+               "Clearcoat": "Coat Weight", "Sheen": "Sheen Weight"}
+    return socket(node, renamed[name], name) if name in renamed else node.inputs[name]
+
+
+def light_casts_shadow(light):
+    """Cycles' per-light shadow switch: light.cycles.cast_shadow in 3.x; 5.2 has only Light.use_shadow, and
+    reading the old name with a default silently took every light as shadowing."""
+    cyc = getattr(light, "cycles", None)
+    if cyc is not None and hasattr(cyc, "cast_shadow"):
+        return bool(cyc.cast_shadow)
+    return bool(getattr(light, "use_shadow", True))
+
+
+def set_light_casts_shadow(light, on):
+    cyc = getattr(light, "cycles", None)
+    if cyc is not None and hasattr(cyc, "cast_shadow"):
+        cyc.cast_shadow = on
+    else:
+        light.use_shadow = on
+
+
+def uses_nodes(mat):
+    """Whether a material (or world) renders from its node tree. 5.0 made every one node-based and deprecated
+    use_nodes, whose setter no longer does anything there."""
+    if VERSION >= (5, 0, 0):
+        return mat.node_tree is not None
+    return bool(mat.use_nodes) and mat.node_tree is not None
+
+
+def enable_nodes(mat):
+    """Give a new material or world its node tree (5.0 creates it already; use_nodes goes in 6.0)."""
+    if VERSION < (5, 0, 0):
+        mat.use_nodes = True
+
+
+def no_light_sampling(mat):
+    """Keep Cycles from sampling a material's emission as a light: a bool until 3.4, an enum from 3.5."""
+    cyc = mat.cycles
+    if hasattr(cyc, "emission_sampling"):
+        cyc.emission_sampling = "NONE"
+    else:
+        cyc.sample_as_light = False
+
+
+def multilayer_exr(image_settings):
+    """Set image settings to multilayer EXR: 5.0 refuses the format unless the media type is chosen first."""
+    if hasattr(image_settings, "media_type"):
+        image_settings.media_type = "MULTI_LAYER_IMAGE"
+    image_settings.file_format = "OPEN_EXR_MULTILAYER"
+
+
+def override_object(ob):
+    """temp_override keywords that make `ob` the context object: operators' poll functions read
+    `active_object` in 5.x where 3.4's read `object`."""
+    return {"object": ob, "active_object": ob}
+
+
+def mesh_attribute_names(me):
+    return {a.name for a in me.attributes}
+
+
+def drop_new_internal_attributes(me, before):
+    """Remove the internal ('.'-named) attributes that edit mode added to `me` since `before` (a set of names):
+    .hide_*, .select_*, .uv_select_* and the UV maps' .vs./.es./.pn. layers. Since 4.x they stay on the mesh
+    after an edit-mode round trip; absent, each means all elements unhidden, unselected, unpinned, so removing
+    one that was absent before restores exactly what the mesh held."""
+    for name in sorted(mesh_attribute_names(me) - before):
+        if not name.startswith("."):
+            continue
+        attr = me.attributes.get(name)
+        if attr is None:
+            continue
+        try:
+            me.attributes.remove(attr)
+        except RuntimeError:
+            pass   # an attribute the mesh requires (none of the edit-mode ones is); leave it
