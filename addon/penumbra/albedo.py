@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 
 from . import compat
-from .materials import albedo_varies
+from .materials import albedo_varies, bake_batches
 
 # Samples per texel of the Color bake. Cycles' DIFFUSE bake spreads its samples over each texel, so a texel that
 # a texture edge crosses holds a mix; at one sample the albedo is the texel centre's alone. On a checkered floor
@@ -103,18 +103,10 @@ def bake_albedo(scene, view_layer, jobs, margin):
         c.use_denoising = False
         for vl in scene.view_layers:
             vl.cycles.use_denoising = False
-        batches = []
-        for name, (uv_name, res) in jobs.items():
-            mats = {m.name_full for m in own_materials(bpy.data.objects[name]) if m is not None}
-            for b in batches:
-                if b["uv"] == uv_name and not (b["mats"] & mats):
-                    b["names"].append(name)
-                    b["mats"] |= mats
-                    break
-            else:
-                batches.append({"uv": uv_name, "names": [name], "mats": set(mats)})
-        for b in batches:
-            result.update(_bake_batch(scene, view_layer, b["names"], b["uv"], jobs, margin))
+        uv_of = {name: uv_name for name, (uv_name, res) in jobs.items()}
+        for names in bake_batches(uv_of, lambda n: {m.name_full for m in own_materials(bpy.data.objects[n])
+                                                     if m is not None}):
+            result.update(_bake_batch(scene, view_layer, names, uv_of[names[0]], jobs, margin))
     finally:
         settings.restore()
         for o in view_layer.objects:

@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 
 from . import compat
-from .materials import parse_material
+from .materials import bake_batches, parse_material
 from .preview import preview_off, preview_on, set_preview
 from .writeback import baked_state
 
@@ -373,16 +373,9 @@ def cycles_lightmaps(scene, jobs, samples, seed=0, bounces=32, margin=4):
     """
     _path_tracing(scene, samples, bounces, seed)
     vl = bpy.context.view_layer
-    batches = []
-    for name, (uv_name, w, h) in jobs.items():
-        mats = {s.material.name for s in bpy.data.objects[name].material_slots if s.material is not None}
-        for b in batches:
-            if b["uv"] == uv_name and not (b["mats"] & mats):
-                b["names"].append(name)
-                b["mats"] |= mats
-                break
-        else:
-            batches.append({"uv": uv_name, "names": [name], "mats": set(mats)})
+    uv_of = {name: uv_name for name, (uv_name, w, h) in jobs.items()}
+    batches = [{"uv": uv_of[names[0]], "names": names} for names in bake_batches(
+        uv_of, lambda n: {s.material.name for s in bpy.data.objects[n].material_slots if s.material is not None})]
     result, seconds = {}, 0.0
     for b in batches:
         made = []      # (node tree, node, previous active node)

@@ -282,3 +282,21 @@ def emission_varies(mat):
     if mat is None or not compat.uses_nodes(mat):
         return False
     return _varies(emission_input(mat.node_tree)[0])
+
+
+def bake_batches(uv_of, materials_of):
+    """Objects grouped for Cycles bake calls: one call bakes every selected object at once (one scene sync),
+    but each material's active Image Texture node is the target, so objects in one call must share the UV
+    map name and no material. `uv_of`: {object name: UV map name}, in bake order; `materials_of(name)`: the
+    set of its material names. Returns lists of object names, the first fit kept in that order."""
+    batches = []
+    for name, uv_name in uv_of.items():
+        mats = set(materials_of(name))
+        for b in batches:
+            if b["uv"] == uv_name and not (b["mats"] & mats):
+                b["names"].append(name)
+                b["mats"] |= mats
+                break
+        else:
+            batches.append({"uv": uv_name, "names": [name], "mats": mats})
+    return [b["names"] for b in batches]
