@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "native", "python"))
 import _native  # noqa: E402
 import contact_scenes  # noqa: E402
 
-MODES = {"standard": {"convolution": False}, "convolution": {}}
+MODES = {"standard": {"convolution": False}, "convolution": {"contact_slabs": True}}
 
 
 def cpu():

@@ -366,6 +366,7 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
     // texels a side.
     ConvolutionSettings cs;
     cs.e_max = settings_.eMax;
+    cs.contactSlabs = settings_.contactSlabs;
     cs.maxResolution = settings_.maxTexture;
     cs.minResolution = std::min(16, settings_.maxTexture);
     // Parts no larger than kPartRatio of the source's distance to the receiver (V weights by area, not by

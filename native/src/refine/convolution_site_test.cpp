@@ -108,6 +108,7 @@ TEST(ConvolutionSites, ABoxRestingOnTheFloorTakesContactSubBlockers) {
     // t_max of 50 ms.
     Settings slow;
     slow.tMax = 1.0;
+    slow.contactSlabs = true;  // off by default (settings.h)
     Sites s(floorUnderLamp(Card::Resting), slow);
     ConvolutionLink l;
     EXPECT_TRUE(s.sites->wouldLink(0, 1));

@@ -50,6 +50,10 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
     X(double, tMax, "t_max", 0.05, '(', 0, kNoBound, ')')                                                  \
     /* largest soft shadow texture, texels per side */                                                      \
     X(int, maxTexture, "max_texture", 512, '[', 16, 4096, ']')                                             \
+    /* Contact sub-blockers (issue 12): a blocker resting on its receiver is cut into clipped depth slabs     \
+       so the pair can take a texture. Off by default: on the Cornell box its floor's one texture moved the  \
+       per-face error against Cycles from 1.17 % to 1.52 % (box-on-floor scenes: 2.4 % -> 0.7 % RMS). */   \
+    X(bool, contactSlabs, "contact_slabs", false, '[', 0, 1, ']')                                          \
     /* Final gather: the emitters' light is evaluated exactly at every bake point (form factor times         \
        visibility) instead of read from the elements; the hierarchy carries the reflected remainder. */     \
     X(bool, finalGather, "final_gather", true, '[', 0, 1, ']')                                             \

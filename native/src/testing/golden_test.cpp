@@ -132,8 +132,8 @@ TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
     expectGolden(testing::litRoom(), goldenSettings(), {"5b97030f8e303ddf", "15a5752c9c2e38f6",
                     "polygons=13 elements=35625 leaves=26722 links=176603 rays=3164720 shafts_clear=82360 "
                     "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
-                    "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=0 "
-                    "refused.too_slow=1 gather_emitters=1 iterations=34 refine_passes=3 max_error=0x0p+0 "
+                    "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
+                    "refused.too_slow=0 gather_emitters=1 iterations=34 refine_passes=3 max_error=0x0p+0 "
                     "residual=0x1.885eae47dd5bcp-15 converged=1 warnings=0"});
 }
 
@@ -153,8 +153,8 @@ TEST(Golden, LitRoomWithoutFinalGatherOrClustersIsBitIdenticalToTheRecordedRun) 
     expectGolden(testing::litRoom(), s, {"5d436d8a980057ab", "17f375b7551b3f80",
                     "polygons=13 elements=35589 leaves=26695 links=174757 rays=3127776 shafts_clear=81653 "
                     "clusters=0 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
-                    "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=0 "
-                    "refused.too_slow=1 gather_emitters=0 iterations=33 refine_passes=3 max_error=0x0p+0 "
+                    "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
+                    "refused.too_slow=0 gather_emitters=0 iterations=33 refine_passes=3 max_error=0x0p+0 "
                     "residual=0x1.f9a699a30f16ep-15 converged=1 warnings=0"});
 }
 
