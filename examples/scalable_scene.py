@@ -260,8 +260,9 @@ def build_bpy(n_polygons, scene=None, seed=0):
         light.shape = "RECTANGLE"
         light.size, light.size_y = lx, ly
         light.color = LIGHT_COLOR
-        # The add-on exports exitance pi * P * color / (4 A); invert it for the same emission as make_scene.
-        light.energy = 4.0 * lx * ly * LIGHT_EXITANCE / math.pi
+        # The add-on exports exitance pi * P * color / (4 A) before Blender 4.0 and P * color / A since (Cycles'
+        # area light units); invert it for the same emission as make_scene.
+        light.energy = lx * ly * LIGHT_EXITANCE * (4.0 / math.pi if bpy.app.version < (4, 0, 0) else 1.0)
         ob = bpy.data.objects.new(name, light)
         ob.location = centre                        # no rotation: it faces local -Z, down
         scene.collection.objects.link(ob)

@@ -1,6 +1,8 @@
 """The bpy differences between the Blender versions Penumbra supports (3.4 in Debian 12, 4.3 in Debian 13,
 5.x in sid), each in one place so the rest of the add-on reads the same on all of them. Each helper names the
 version that changed the API; docs/blender-versions.md lists them with how each was found."""
+import math
+
 import bpy
 
 VERSION = bpy.app.version
@@ -96,3 +98,21 @@ def drop_new_internal_attributes(me, before):
             me.attributes.remove(attr)
         except RuntimeError:
             pass   # an attribute the mesh requires (none of the edit-mode ones is); leave it
+
+
+def area_light_exitance(power, area):
+    """Exitance M of an area light of power P over its area A. Cycles before 4.0 gave it radiance P / (4A)
+    (M = pi P / (4A), measured: blender-facts section 1); 4.0 changed the factor 4 to pi (Blender issue 109404),
+    so M = P / A: a textured floor under a square lamp came out pi / 4 of Cycles 5.2's bake with the old one."""
+    if VERSION >= (4, 0, 0):
+        return power / area
+    return math.pi * power / (4.0 * area)
+
+
+def sync_layer_collections(view_layer):
+    """Blender 4.x+ syncs a view layer's layer collections lazily: in a scene that is not the window's, right
+    after objects were linked to it, a layer collection can read as None (seen in 5.2). An update syncs them."""
+    def stale(lc):
+        return lc is None or any(stale(c) for c in lc.children)
+    if stale(view_layer.layer_collection):
+        view_layer.update()

@@ -274,6 +274,7 @@ def rendered_objects(view_layer):
     """Objects Cycles renders in this view layer, by full name: in a collection that is neither excluded
     nor disabled in renders, and not disabled in renders themselves. Viewport hiding plays no part."""
     found = {}
+    compat.sync_layer_collections(view_layer)
 
     def walk(lc):
         if lc.exclude or lc.collection.hide_render:
@@ -307,6 +308,7 @@ class render_visibility:
 
     def __enter__(self):
         vl = self.vl
+        compat.sync_layer_collections(vl)
 
         def walk(lc):
             if lc.exclude or lc.collection.hide_render:
@@ -422,7 +424,7 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             if area <= 0:
                 res.skip(name, "area light with zero area")
                 continue
-            exitance = math.pi * light.energy * np.array(light.color, np.float64) / (4.0 * area)
+            exitance = compat.area_light_exitance(light.energy, area) * np.array(light.color, np.float64)
             co_w = np.concatenate(lpolys)
             rows = np.full((len(lpolys), 4), -1, np.int32)
             start = 0
