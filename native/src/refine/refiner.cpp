@@ -319,9 +319,11 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches) {
             if (!(len > 0) || dot(ur, d) <= kGrazing * len || -dot(us, d) <= kGrazing * len) continue;
             ++counted;
             seen += vis[i];
-            double len2 = len * len, w = dot(ur, d) * -dot(us, d) / (len2 * len2);
-            wAll += w;
-            wSeen += vis[i] ? w : 0.0;
+            if (batches > 0) {  // the kernel weights only serve the batched estimate
+                double len2 = len * len, w = dot(ur, d) * -dot(us, d) / (len2 * len2);
+                wAll += w;
+                wSeen += vis[i] ? w : 0.0;
+            }
         }
     }
     if (batches > 0 && wAll > 0)
