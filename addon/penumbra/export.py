@@ -211,9 +211,11 @@ def lamp_light(light, matrix, name, index):
          "position": tuple(m[:3, 3]), "direction": tuple(down / norm) if norm > 0 else (0.0, 0.0, -1.0)}
     if light.type in ("POINT", "SPOT"):
         d["radius"] = float(light.shadow_soft_size)
+        d["sphere"] = compat.lamp_is_sphere(light)
     if light.type == "SPOT":
         d["spot_size"] = float(light.spot_size)
         d["spot_blend"] = float(light.spot_blend)
+        d["spot_cosine"] = compat.spot_multiplies_cosine()
     if light.type == "SUN":
         d["angle"] = float(light.angle)
     return d
