@@ -321,3 +321,39 @@ def test_lamp_with_a_radius_against_cycles(empty_scene, penumbra, kind, soft):
     if kind == "SPOT":
         dark = cyc[:, 1] == 0
         assert dark.sum() > 50 and got[dark].max() < 1e-3 * got.max()
+
+
+def test_object_hidden_from_shadow_rays_lets_lamps_through(empty_scene, penumbra):
+    """Ray Visibility > Shadow off on a black card between a point lamp and the plane: Cycles' shadow rays pass
+    it, so the plane under it gets the bare lamp's light (analytic, and Cycles' own bake agrees); with the
+    flag on, it is in shadow. Before, the export ignored the flag and the card's shadow stayed."""
+    from penumbra import compare
+    _scene(empty_scene)
+    card = helpers.quad_object("Card", 0.5, 0.5, z=0.6, material=helpers.diffuse_material("Black", (0, 0, 0)))
+    ob = _lamp(empty_scene, "POINT", (0, 0, 1.2), energy=100.0, shadow_soft_size=0.0)
+    _, got, pos = _bake_plane(penumbra, empty_scene)
+    under = np.hypot(pos[:, 0], pos[:, 1]) < 0.3
+    assert under.sum() > 10 and got[under].max() == 0
+    card.visible_shadow = False
+    report, got, pos = _bake_plane(penumbra, empty_scene)
+    assert any("Card" in n and "shadow rays" in n for n in report["notes"])
+    d = np.asarray(ob.location)[None, :] - pos
+    d2 = (d ** 2).sum(axis=1)
+    E = (100.0 * d[:, 2] / np.sqrt(d2) / (4 * math.pi * d2))[:, None] * np.ones(3)[None, :]
+    _compare(got, E)
+    plane = bpy.data.objects["Plane"]
+    ref, _ = compare.cycles_lightmaps(empty_scene, {"Plane": (plane["penumbra"]["uv_map"], RES, RES)}, samples=16)
+    mask, tpos = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
+    inner = mask & (np.abs(tpos[..., 0]) < HALF - 0.05) & (np.abs(tpos[..., 1]) < HALF - 0.05)
+    cyc = ref["Plane"][inner][:, :3]
+    print(f"under the card: Cycles / analytic {cyc[under].mean() / (np.asarray(ALBEDO) * E[under] / math.pi).mean():.4f}")
+    assert np.abs(cyc[under] / got[under] - 1).max() < 0.01
+
+
+def test_diffuse_ray_visibility_is_reported(empty_scene, penumbra):
+    _scene(empty_scene)
+    card = helpers.quad_object("Card", 0.5, 0.5, z=0.6, material=helpers.diffuse_material("Grey", (0.5, 0.5, 0.5)))
+    card.visible_diffuse = False
+    _lamp(empty_scene, "POINT", (0, 0, 1.2), energy=100.0, shadow_soft_size=0.0)
+    report, _, _ = _bake_plane(penumbra, empty_scene)
+    assert any("Card" in w and "Diffuse off is not supported" in w for w in report["warnings"])

@@ -125,6 +125,12 @@ def spot_multiplies_cosine():
     return VERSION < (4, 0, 0)
 
 
+def ray_visibility(ob):
+    """(shadow, diffuse): Cycles' per-object Ray Visibility, Object.visible_shadow and visible_diffuse since 3.0
+    (the same names in 5.2, which adds visible_raycast)."""
+    return bool(getattr(ob, "visible_shadow", True)), bool(getattr(ob, "visible_diffuse", True))
+
+
 def sync_layer_collections(view_layer):
     """Blender 4.x+ syncs a view layer's layer collections lazily: in a scene that is not the window's, right
     after objects were linked to it, a layer collection can read as None (seen in 5.2). An update syncs them."""

@@ -18,6 +18,7 @@ PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writebac
 
 EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
+NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: point, spot and sun lamps shine through it
 
 DISK_SECTORS = 32
 # A quad is sent as one polygon only if it is flat and convex: the solver subdivides it as a planar
@@ -476,6 +477,14 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
                 rows = np.where(tri[:, None], rows[:, [2, 1, 0, 3]], rows[:, [3, 2, 1, 0]])
             radiance = rad_t[si]
             fl = np.where(radiance.max(axis=1) > 0, EMIT_BACK, 0).astype(np.uint8)
+            shadow, diffuse = compat.ray_visibility(ob_eval.original)
+            if not shadow:
+                fl |= NO_LAMP_SHADOW
+                res.notes.append(f"object '{name}': hidden from shadow rays, so point, spot and sun lamps shine "
+                                 f"through it; the world, area lights and emitting meshes are still blocked by it")
+            if not diffuse:
+                res.warnings.append(f"object '{name}': Ray Visibility > Diffuse off is not supported yet: it still "
+                                    f"reflects light onto others and blocks their light")
             add_part(name, co_w, rows, albedo_t[si], math.pi * radiance, fl)
         finally:
             ob_eval.to_mesh_clear()

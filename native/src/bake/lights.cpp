@@ -155,17 +155,19 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, con
     char* clear = scratch.clear.data();
     // Sum of w over the points whose segment from `from` is clear. With `shortcut` the first few points
     // decide: when they all agree (full light, umbra) the rest are taken to agree too.
+    // Point, spot and sun lamps cast shadow rays in Cycles, which objects hidden from them let through.
+    const bool lampRay = l.type != LightType::World;
     auto clearWeight = [&](int count, bool shortcut = true) {
         double all = 0, seen = 0;
         for (int k = 0; k < count; ++k) all += w[k];
         if (!shadows) return all;
         int coarse = shortcut ? std::min(count, 8) : count;
-        rays_->visibleMask(from, to, coarse, clear);
+        rays_->visibleMask(from, to, coarse, clear, lampRay);
         int hits = 0;
         for (int k = 0; k < coarse; ++k) hits += clear[k];
         if (count > coarse) {
             if (hits == 0 || hits == coarse) std::fill(clear + coarse, clear + count, char(hits ? 1 : 0));
-            else rays_->visibleMask(from, to + coarse, count - coarse, clear + coarse);
+            else rays_->visibleMask(from, to + coarse, count - coarse, clear + coarse, lampRay);
         }
         if (stats) stats->rays += size_t(hits == 0 || hits == coarse ? coarse : count);
         for (int k = 0; k < count; ++k) seen += clear[k] ? w[k] : 0.0;

@@ -255,6 +255,28 @@ TEST(Lights, ShadowsAndCastShadow) {
     EXPECT_NEAR(floorIrradiance(*sol, 0.5, 0.5), lit, 1e-3 * lit);
 }
 
+// Ray Visibility > Shadow off on the card (kNoLampShadow): point and sun lamps shine through it, the
+// world's occlusion still counts it.
+TEST(Lights, CardHiddenFromShadowRaysLetsLampsThrough) {
+    TestScene t = openFloor();
+    t.quad({-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}, {}, {}, kNoLampShadow, 1);
+    t.quad({-1, -1, 1}, {-1, 1, 1}, {1, 1, 1}, {1, -1, 1}, {}, {}, kNoLampShadow, 1);
+    auto sol = solveLit(t, {pointLight({0, 0, 2}, 100, 0)});
+    double lit = 100 / (4 * M_PI) * 2 / std::pow(4 + 0.5, 1.5);
+    EXPECT_NEAR(floorIrradiance(*sol, 0.5, 0.5), lit, 1e-3 * lit);
+    Light sun;
+    sun.type = LightType::Sun;
+    sun.value = {3, 3, 3};
+    sun.angle = 0.1;
+    sol = solveLit(t, {sun});
+    EXPECT_NEAR(floorIrradiance(*sol, 0.2, -0.3), 3 * sunDiskFactor(0.1), 1e-3);
+    Light world;
+    world.type = LightType::World;
+    world.value = {1, 1, 1};
+    sol = solveLit(t, {world});
+    EXPECT_LT(floorIrradiance(*sol, 0, 0), 0.8 * M_PI);  // the card hides a good part of the sky
+}
+
 // A sun of angular diameter alpha over a straight edge at height h: the penumbra is h tan(alpha) wide
 // and the point straight under the edge sees half the sun.
 TEST(Lights, SoftSunShadowIsHalfUnderTheEdge) {

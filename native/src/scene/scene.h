@@ -13,6 +13,10 @@ namespace penumbra {
 enum PolygonFlags : uint8_t {
     kEmitBack = 1,   // emits B_e from the back side too (Cycles mesh emitters are two-sided)
     kLightOnly = 2,  // a lamp: emits, but neither receives, reflects nor blocks
+    // Blender's Ray Visibility > Shadow off: the lamps' shadow rays (point, spot, sun) pass through it.
+    // The world, area lights and emitting faces still see it as a blocker (their light travels on the
+    // hierarchy's links, which carry reflected light too, and Cycles' diffuse rays still meet it).
+    kNoLampShadow = 4,
 };
 
 // A Blender lamp that is not a polygon, in Cycles' units (blender-facts.md section 1). Point and spot:
@@ -66,6 +70,7 @@ struct ScenePolygon {
     Rgb rho, emission;
     bool receives = true;   // takes part as a receiver and reflector
     bool occludes = true;   // put in the ray-tracing scene (a back-side copy shares its twin's triangles)
+    bool blocksLamps = true;  // and in the one the lamps' shadow rays use (kNoLampShadow clears it)
     int object = -1;
     int input = -1;         // index of the input polygon it came from
     // Faces joined through shared input vertices, transitively: one connected surface. The display
