@@ -73,6 +73,32 @@ def multilayer_exr(image_settings):
     image_settings.file_format = "OPEN_EXR_MULTILAYER"
 
 
+def single_layer_exr(image_settings):
+    """Set image settings to a plain (single-layer) EXR; 5.0 wants the media type chosen first."""
+    if hasattr(image_settings, "media_type"):
+        image_settings.media_type = "IMAGE"
+    image_settings.file_format = "OPEN_EXR"
+
+
+def panorama_settings(cam_data):
+    """Where a camera's panorama settings (panorama_type, latitude/longitude range) live: Camera.cycles in 3.x,
+    the Camera itself since 4.0 (5.2 has no Camera.cycles.panorama_type)."""
+    cyc = getattr(cam_data, "cycles", None)
+    if cyc is not None and hasattr(cyc, "panorama_type"):
+        return cyc
+    return cam_data
+
+
+def world_ray_visibility(world):
+    """The world's Cycles ray visibility flags (camera, diffuse, ...): World.cycles_visibility in 3.4 and 5.2
+    alike; a later rename to World.visibility is looked for too. None when neither is there."""
+    for name in ("cycles_visibility", "visibility"):
+        vis = getattr(world, name, None)
+        if vis is not None and hasattr(vis, "camera"):
+            return vis
+    return None
+
+
 def override_object(ob):
     """temp_override keywords that make `ob` the context object: operators' poll functions read
     `active_object` in 5.x where 3.4's read `object`."""

@@ -29,14 +29,6 @@ CAMERA_ROTATION = (np.pi / 2, 0.0, -np.pi / 2)
 SUN_SCALE, SUN_WINDOW, SUN_SAMPLES, SUN_FIND = 8, 2.0, 64, 8.0
 
 
-def _panorama(cam_data):
-    # 3.x keeps the panorama settings on the Cycles property group, 4.0+ on the camera itself.
-    cyc = getattr(cam_data, "cycles", None)
-    if cyc is not None and hasattr(cyc, "panorama_type"):
-        return cyc
-    return cam_data
-
-
 def render_world(world, width=WIDTH, height=HEIGHT, samples=SAMPLES, turn=0.0, window=None):
     """The world's radiance in every direction as (height, width, 3) float32, linear, rows from the bottom
     (straight down) up, in the Environment Texture's equirectangular mapping. Raises RuntimeError when Cycles
@@ -67,7 +59,7 @@ def render_world(world, width=WIDTH, height=HEIGHT, samples=SAMPLES, turn=0.0, w
         sc.view_settings.exposure = 0.0
         sc.view_settings.gamma = 1.0
         cam_data.type = "PANO"
-        _panorama(cam_data).panorama_type = "EQUIRECTANGULAR"
+        compat.panorama_settings(cam_data).panorama_type = "EQUIRECTANGULAR"
         cam = bpy.data.objects.new("PenumbraWorldMap", cam_data)
         cam.rotation_euler = (CAMERA_ROTATION[0], CAMERA_ROTATION[1], CAMERA_ROTATION[2] + turn)
         if window is not None:
@@ -79,9 +71,7 @@ def render_world(world, width=WIDTH, height=HEIGHT, samples=SAMPLES, turn=0.0, w
         sc.collection.objects.link(cam)
         sc.camera = cam
         im = sc.render.image_settings
-        if hasattr(im, "media_type"):
-            im.media_type = "IMAGE"
-        im.file_format = "OPEN_EXR"
+        compat.single_layer_exr(im)
         im.color_depth = "32"
         im.color_mode = "RGB"
         sc.render.use_file_extension = False
@@ -112,8 +102,7 @@ class _camera_sees_world:
     panoramic camera for the render, then put the flag back."""
 
     def __init__(self, world):
-        vis = getattr(world, "cycles_visibility", None) or getattr(world, "visibility", None)
-        self.vis = vis if vis is not None and hasattr(vis, "camera") else None
+        self.vis = compat.world_ray_visibility(world)
         self.old = None
 
     def __enter__(self):
