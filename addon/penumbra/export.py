@@ -18,6 +18,7 @@ PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writebac
 
 EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
+NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: point, spot and sun lamps shine through it
 
 DISK_SECTORS = 32
 # A quad is sent as one polygon only if it is flat and convex: the solver subdivides it as a planar
@@ -211,9 +212,11 @@ def lamp_light(light, matrix, name, index):
          "position": tuple(m[:3, 3]), "direction": tuple(down / norm) if norm > 0 else (0.0, 0.0, -1.0)}
     if light.type in ("POINT", "SPOT"):
         d["radius"] = float(light.shadow_soft_size)
+        d["sphere"] = compat.lamp_is_sphere(light)
     if light.type == "SPOT":
         d["spot_size"] = float(light.spot_size)
         d["spot_blend"] = float(light.spot_blend)
+        d["spot_cosine"] = compat.spot_multiplies_cosine()
     if light.type == "SUN":
         d["angle"] = float(light.angle)
     return d
@@ -222,21 +225,19 @@ def lamp_light(light, matrix, name, index):
 def world_light(scene, result):
     """The world for the solver: (its light dict without "object", or None; a reason it was skipped, or None).
 
-    A uniform Background colour, or an Environment Texture (equirectangular, default vector) on its Color."""
+    A uniform Background colour, or an Environment Texture (equirectangular, default vector) on its Color, read
+    directly; any other world node tree as Cycles renders it into an equirectangular map (world_map)."""
     value, why = _world_value(scene)
     if isinstance(value, dict) or value is None:
         return value, why
     return {"type": "WORLD", "value": value}, why
 
 
-def _environment(node, strength):
-    """A Background colour linked straight from an equirectangular Environment Texture: its light dict."""
-    if node.type != "TEX_ENVIRONMENT":
-        return None, ("world lighting from a texture or sky other than an Environment Texture is not supported "
-                      "yet (only a uniform colour or an equirectangular image)")
-    if node.projection != "EQUIRECTANGULAR" or node.inputs["Vector"].is_linked:
-        return None, ("world Environment Texture with a mirror-ball projection or a linked Vector (mapping) is "
-                      "not supported yet")
+def _environment(node, strength, world):
+    """A Background colour linked straight from an equirectangular Environment Texture: its light dict. Any
+    other texture, mapping or projection: the world as Cycles renders it (world_map)."""
+    if node.type != "TEX_ENVIRONMENT" or node.projection != "EQUIRECTANGULAR" or node.inputs["Vector"].is_linked:
+        return _rendered(world)
     try:
         rgb = image_rgb(node.image)
     except Exception as e:  # a missing file: say so rather than bake the scene dark
@@ -244,6 +245,18 @@ def _environment(node, strength):
     if strength <= 0 or not (rgb > 0).any():
         return None, None
     return {"type": "WORLD", "value": (strength,) * 3, "environment": rgb}, None
+
+
+def _rendered(world):
+    """Any other world node tree, evaluated by Cycles into an equirectangular map (world_map.render_world)."""
+    from . import world_map
+    try:
+        rgb, suns = world_map.render_world_and_sun(world)
+    except (RuntimeError, ValueError) as e:
+        return None, f"world could not be rendered into an environment map ({e})"
+    if not (rgb > 0).any() and not suns:
+        return None, None
+    return {"type": "WORLD", "value": (1.0, 1.0, 1.0), "environment": rgb, "rendered": True, "suns": suns}, None
 
 
 def _world_value(scene):
@@ -258,14 +271,14 @@ def _world_value(scene):
         return None, None
     node = out.inputs["Surface"].links[0].from_node
     if node.type != "BACKGROUND":
-        return None, f"world shader '{node.bl_idname}' is not supported (only a Background node)"
+        return _rendered(w)
     c, s = node.inputs["Color"], node.inputs["Strength"]
     if s.is_linked:
-        return None, "world Strength from a node is not supported (only a number)"
+        return _rendered(w)
     if c.is_linked:
         if s.default_value <= 0:
             return None, None
-        return _environment(c.links[0].from_node, float(s.default_value))
+        return _environment(c.links[0].from_node, float(s.default_value), w)
     value = np.array(c.default_value[:3], np.float64) * float(s.default_value)
     return (tuple(value) if (value > 0).any() else None), None
 
@@ -464,6 +477,14 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
                 rows = np.where(tri[:, None], rows[:, [2, 1, 0, 3]], rows[:, [3, 2, 1, 0]])
             radiance = rad_t[si]
             fl = np.where(radiance.max(axis=1) > 0, EMIT_BACK, 0).astype(np.uint8)
+            shadow, diffuse = compat.ray_visibility(ob_eval.original)
+            if not shadow:
+                fl |= NO_LAMP_SHADOW
+                res.notes.append(f"object '{name}': hidden from shadow rays, so point, spot and sun lamps shine "
+                                 f"through it; the world, area lights and emitting meshes are still blocked by it")
+            if not diffuse:
+                res.warnings.append(f"object '{name}': Ray Visibility > Diffuse off is not supported yet: it still "
+                                    f"reflects light onto others and blocks their light")
             add_part(name, co_w, rows, albedo_t[si], math.pi * radiance, fl)
         finally:
             ob_eval.to_mesh_clear()
@@ -497,7 +518,15 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         res.skip(scene.world.name, why)
     elif world is not None:
         res.object_names.append(f"World '{scene.world.name}'")
-        res.lights.append(dict(world, object=len(res.object_names) - 1))
+        k = len(res.object_names) - 1
+        suns = world.pop("suns", [])
+        if world.pop("rendered", False):
+            from . import world_map
+            res.notes.append(f"world '{scene.world.name}': its node tree was evaluated by Cycles into a "
+                             f"{world_map.WIDTH} x {world_map.HEIGHT} environment map"
+                             + (f", its sun disc sent as a SUN lamp" if suns else ""))
+        res.lights.append(dict(world, object=k))
+        res.lights += [dict(sun, object=k) for sun in suns]
     if polys:
         res.vertices = np.ascontiguousarray(np.concatenate(verts), np.float32)
         res.polygons = np.ascontiguousarray(np.concatenate(polys), np.int32)

@@ -173,14 +173,16 @@ py::dict reportDict(const Report& r, const std::vector<std::string>& names) {
 }
 
 // One light from a dict: {"type": "POINT" | "SPOT" | "SUN" | "WORLD", "value": (r, g, b), and as the type
-// needs "position", "direction", "radius", "spot_size", "spot_blend", "angle", "cast_shadow", "object"}.
+// needs "position", "direction", "radius", "sphere", "spot_size", "spot_blend", "spot_cosine", "angle",
+// "cast_shadow", "object"}.
 Light parseLight(const py::handle& h) {
     if (!py::isinstance<py::dict>(h)) throw py::value_error("each light must be a dict");
     py::dict d = py::reinterpret_borrow<py::dict>(h);
     for (auto item : d) {
         std::string k = py::str(item.first);
         static const char* known[] = {"type", "value", "position", "direction", "radius", "spot_size",
-                                      "spot_blend", "angle", "cast_shadow", "object", "environment"};
+                                      "spot_blend", "angle", "cast_shadow", "object", "environment",
+                                      "sphere", "spot_cosine"};
         if (std::find(std::begin(known), std::end(known), k) == std::end(known))
             throw py::value_error("light: unknown key '" + k + "'");
     }
@@ -208,6 +210,8 @@ Light parseLight(const py::handle& h) {
     l.spotBlend = num("spot_blend", 0);
     l.angle = num("angle", 0);
     l.castShadow = d.contains("cast_shadow") ? d["cast_shadow"].cast<bool>() : true;
+    l.sphere = d.contains("sphere") ? d["sphere"].cast<bool>() : false;
+    l.spotCosine = d.contains("spot_cosine") ? d["spot_cosine"].cast<bool>() : true;
     l.object = d.contains("object") ? d["object"].cast<int>() : -1;
     if (d.contains("environment") && !d["environment"].is_none()) {
         auto img = checked<float>(d["environment"], "environment", {-1, -1, 3});

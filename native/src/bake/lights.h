@@ -48,10 +48,11 @@ private:
     double lift_, far_;
 };
 
-// The fraction of a Cycles 3.4 spot's intensity sent at angle acos(cosAxis) from its axis: zero
-// outside the cone, the cosine inside it (Cycles multiplies by it; measured against a Cycles bake at
-// 0 to 44 degrees in a 90 degree cone), times a smoothstep over the blend band of width
-// (1 - cos(size/2)) * blend in cosine.
+// The fraction of a spot's intensity sent at angle acos(cosAxis) from its axis: zero outside the cone,
+// inside it the cosine (Cycles 3.x multiplies by it, measured against a Cycles 3.4 bake at 0 to 44
+// degrees in a 90 degree cone; 4.0+ does not, `spotCosine` false: a 5.2 bake at 48 degrees off the axis
+// of a 160 degree cone gave the bare point's irradiance), times a smoothstep over the blend band of
+// width (1 - cos(size/2)) * blend in cosine.
 double spotAttenuation(const Light& l, double cosAxis);
 // A world's environment image at direction d (unit), without the strength.
 Rgb envRadiance(const Light& l, const Vec3& d);

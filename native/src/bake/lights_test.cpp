@@ -89,6 +89,77 @@ TEST(Lights, SpotInsideTheConeAndInTheBlend) {
     EXPECT_EQ(floorIrradiance(*sol, 2 * std::tan(50 * M_PI / 180), 0), 0.0);  // outside the cone
 }
 
+// A lamp of radius r integrated by brute force at a point of the upward floor: the disk facing the point
+// (`sphere` false) in polar area steps, or the sphere's visible cap in steps of solid angle, each
+// element weighed by the receiver's cosine and the spot's cone at its own direction.
+double bruteForce(const Light& l, const Vec3& p) {
+    const int N = 400;
+    Vec3 toC = l.position - p;
+    double d = length(toC);
+    Vec3 w = toC / d, a = std::fabs(w.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+    Vec3 t1 = normalize(cross(w, a)), t2 = cross(w, t1);
+    double r = l.radius, L = l.value.x / (4 * M_PI * M_PI * r * r), sum = 0;
+    auto att = [&](const Vec3& fromLamp) { return l.type == LightType::Spot ? spotAttenuation(l, dot(fromLamp, l.direction)) : 1.0; };
+    for (int i = 0; i < N; ++i)
+        for (int j = 0; j < N; ++j) {
+            double phi = 2 * M_PI * (j + 0.5) / N;
+            if (!l.sphere) {
+                double rho = r * (i + 0.5) / N, dA = rho * (r / N) * (2 * M_PI / N);
+                Vec3 q = l.position + (t1 * std::cos(phi) + t2 * std::sin(phi)) * rho;
+                Vec3 v = q - p;
+                double t2q = length2(v);
+                Vec3 u = v / std::sqrt(t2q);
+                sum += L * std::max(0.0, u.z) * dot(u, w) * att(-u) * dA / t2q;
+            } else {
+                double cosA = std::sqrt(1 - r * r / (d * d));
+                double cg = 1 - (1 - cosA) * (i + 0.5) / N, sg = std::sqrt(1 - cg * cg);
+                double dOmega = (1 - cosA) / N * (2 * M_PI / N);
+                Vec3 u = w * cg + (t1 * std::cos(phi) + t2 * std::sin(phi)) * sg;
+                sum += L * std::max(0.0, u.z) * att(-u) * dOmega;
+            }
+        }
+    return sum;
+}
+
+// Cycles 4.0+: a lamp with Soft Falloff off is a sphere (wholly above the horizon exactly the bare
+// point's irradiance), and a spot no longer multiplies by the cosine from its axis. Spots with a radius,
+// disk or sphere, weigh each direction by the cone: against a brute-force integral.
+TEST(Lights, SphereLampsAndSpotsWithARadius) {
+    const Vec3 pos{0.4, -0.3, 1.0};
+    Light sphere = pointLight(pos, 120, 0.5);
+    sphere.sphere = true;
+    auto sol = solveLit(openFloor(), {sphere});
+    for (double x : {0.4, 1.0, -1.5, 2.5}) {
+        Vec3 d = pos - Vec3{x, 0.5, 0};
+        double d2 = length2(d), expect = 120 * (d.z / std::sqrt(d2)) / (4 * M_PI * d2);
+        EXPECT_NEAR(floorIrradiance(*sol, x, 0.5) / expect, 1, 1e-3) << x;
+    }
+    for (bool asSphere : {false, true})
+        for (bool cosine : {false, true}) {
+            Light l = pointLight(pos, 120, 0.5);
+            l.type = LightType::Spot;
+            l.sphere = asSphere;
+            l.spotCosine = cosine;
+            l.spotSize = M_PI / 2;
+            l.spotBlend = 0.3;
+            auto s = solveLit(openFloor(), {l});
+            for (double x : {0.4, 0.9, 1.3, 1.6}) {
+                Vec3 p{x, -0.3, 0};
+                double expect = bruteForce(l, p), got = floorIrradiance(*s, p.x, p.y);
+                EXPECT_NEAR(got, expect, 0.004 * bruteForce(l, Vec3{0.4, -0.3, 0}))
+                    << (asSphere ? "sphere" : "disk") << (cosine ? " with" : " without") << " cosine at x " << x;
+            }
+        }
+    // Without the cosine, a point spot's irradiance inside the cone is the point lamp's.
+    Light bare = pointLight({0, 0, 2}, 100, 0);
+    bare.type = LightType::Spot;
+    bare.spotSize = M_PI / 2;
+    bare.spotCosine = false;
+    auto s = solveLit(openFloor(), {bare});
+    double x = 1.2, d2 = 4 + x * x;
+    EXPECT_NEAR(floorIrradiance(*s, x, 0) / (100 * (2 / std::sqrt(d2)) / (4 * M_PI * d2)), 1, 1e-3);
+}
+
 TEST(Lights, SunAtTwoAnglesAndTwoSizes) {
     for (double tilt : {0.0, 40.0})
         for (double size : {0.0, 10.0, 40.0}) {
@@ -182,6 +253,28 @@ TEST(Lights, ShadowsAndCastShadow) {
     sol = solveLit(t, {l});
     double lit = 100 / (4 * M_PI) * 2 / std::pow(4 + 0.5, 1.5);
     EXPECT_NEAR(floorIrradiance(*sol, 0.5, 0.5), lit, 1e-3 * lit);
+}
+
+// Ray Visibility > Shadow off on the card (kNoLampShadow): point and sun lamps shine through it, the
+// world's occlusion still counts it.
+TEST(Lights, CardHiddenFromShadowRaysLetsLampsThrough) {
+    TestScene t = openFloor();
+    t.quad({-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}, {}, {}, kNoLampShadow, 1);
+    t.quad({-1, -1, 1}, {-1, 1, 1}, {1, 1, 1}, {1, -1, 1}, {}, {}, kNoLampShadow, 1);
+    auto sol = solveLit(t, {pointLight({0, 0, 2}, 100, 0)});
+    double lit = 100 / (4 * M_PI) * 2 / std::pow(4 + 0.5, 1.5);
+    EXPECT_NEAR(floorIrradiance(*sol, 0.5, 0.5), lit, 1e-3 * lit);
+    Light sun;
+    sun.type = LightType::Sun;
+    sun.value = {3, 3, 3};
+    sun.angle = 0.1;
+    sol = solveLit(t, {sun});
+    EXPECT_NEAR(floorIrradiance(*sol, 0.2, -0.3), 3 * sunDiskFactor(0.1), 1e-3);
+    Light world;
+    world.type = LightType::World;
+    world.value = {1, 1, 1};
+    sol = solveLit(t, {world});
+    EXPECT_LT(floorIrradiance(*sol, 0, 0), 0.8 * M_PI);  // the card hides a good part of the sky
 }
 
 // A sun of angular diameter alpha over a straight edge at height h: the penumbra is h tan(alpha) wide

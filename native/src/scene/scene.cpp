@@ -153,6 +153,7 @@ Scene buildScene(const SceneInput& in) {
         sp.receives = !(f & kLightOnly);
         if (f & kLightOnly) sp.rho = {};
         sp.occludes = !(f & kLightOnly) && !back;
+        sp.blocksLamps = !(f & kNoLampShadow);
         sp.object = in.objectIndex[p];
         sp.input = int(p);
         sp.surface = findRoot(in.polygons[p * 4]);

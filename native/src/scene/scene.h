@@ -13,11 +13,18 @@ namespace penumbra {
 enum PolygonFlags : uint8_t {
     kEmitBack = 1,   // emits B_e from the back side too (Cycles mesh emitters are two-sided)
     kLightOnly = 2,  // a lamp: emits, but neither receives, reflects nor blocks
+    // Blender's Ray Visibility > Shadow off: the lamps' shadow rays (point, spot, sun) pass through it.
+    // The world, area lights and emitting faces still see it as a blocker (their light travels on the
+    // hierarchy's links, which carry reflected light too, and Cycles' diffuse rays still meet it).
+    kNoLampShadow = 4,
 };
 
 // A Blender lamp that is not a polygon, in Cycles' units (blender-facts.md section 1). Point and spot:
-// `value` is the power P (W, times the colour), radiant intensity P/(4 pi); with a radius r Cycles
-// draws a disk of radius r facing the shaded point, so E = P cos / (4 pi (d^2 + r^2)). Sun: `value`
+// `value` is the power P (W, times the colour), radiant intensity P/(4 pi). With a radius r Cycles draws
+// either a disk of radius r facing the shaded point (every 3.x lamp, and 4.0+ with Soft Falloff, the
+// default), so E = P cos / (4 pi (d^2 + r^2)), or (`sphere`: 4.0+ without Soft Falloff) a sphere of
+// radius r and uniform radiance P / (4 pi^2 r^2), so E = P cos / (4 pi d^2) while the sphere is wholly
+// above the receiver's horizon. Sun: `value`
 // is the strength (W/m^2 at normal incidence for angle 0). World: `value` is the background's
 // radiance (colour x strength), the same from every direction.
 enum class LightType : uint8_t { Point = 0, Spot = 1, Sun = 2, World = 3 };
@@ -27,9 +34,11 @@ struct Light {
     Vec3 position;          // point, spot
     Vec3 direction{0, 0, -1};  // spot axis and sun: the way the light travels (the lamp's local -Z)
     Rgb value;
-    double radius = 0;      // point, spot: the disk Cycles samples (shadow_soft_size)
+    double radius = 0;      // point, spot: the disk or sphere Cycles samples (shadow_soft_size)
+    bool sphere = false;    // point, spot: a sphere of uniform radiance rather than a disk facing the point
     double spotSize = 0;    // spot: full cone angle, radians
     double spotBlend = 0;   // spot: [0, 1]
+    bool spotCosine = true; // spot: Cycles 3.x also multiplies by the cosine from the axis (4.0 dropped it)
     double angle = 0;       // sun: angular diameter, radians
     bool castShadow = true;
     int object = -1;        // index into objectNames, for messages
@@ -61,6 +70,7 @@ struct ScenePolygon {
     Rgb rho, emission;
     bool receives = true;   // takes part as a receiver and reflector
     bool occludes = true;   // put in the ray-tracing scene (a back-side copy shares its twin's triangles)
+    bool blocksLamps = true;  // and in the one the lamps' shadow rays use (kNoLampShadow clears it)
     int object = -1;
     int input = -1;         // index of the input polygon it came from
     // Faces joined through shared input vertices, transitively: one connected surface. The display

@@ -38,22 +38,42 @@ RayCaster::RayCaster(const Scene& scene) {
     }
     numTriangles_ = tris.size() / 3;
     occluders_ = BoxTree(std::move(boxes));
-    if (numTriangles_ > 0) {
+    auto attach = [&](RTCScene target, const std::vector<unsigned>& idx) {
+        size_t count = idx.size() / 3;
+        if (count == 0) return;
         RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
         float* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
             geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), verts.size() / 3));
         unsigned* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-            geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), numTriangles_));
+            geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), count));
         std::copy(verts.begin(), verts.end(), vb);
-        std::copy(tris.begin(), tris.end(), ib);
+        std::copy(idx.begin(), idx.end(), ib);
         rtcCommitGeometry(geom);
-        rtcAttachGeometry(scene_, geom);
+        rtcAttachGeometry(target, geom);
         rtcReleaseGeometry(geom);
-    }
+    };
+    attach(scene_, tris);
     rtcCommitScene(scene_);
+    // A second scene for lamps' shadow rays, only when some polygon lets them through (a separate scene
+    // rather than ray masks, which an Embree build may leave out).
+    std::vector<unsigned> lampTris;
+    bool anyPassed = false;
+    for (size_t t = 0; t < triPolygon_.size(); ++t) {
+        if (scene.polygons[size_t(triPolygon_[t])].blocksLamps)
+            lampTris.insert(lampTris.end(), tris.begin() + long(3 * t), tris.begin() + long(3 * t + 3));
+        else
+            anyPassed = true;
+    }
+    if (anyPassed) {
+        lampScene_ = rtcNewScene(device_);
+        numLampTriangles_ = lampTris.size() / 3;
+        attach(lampScene_, lampTris);
+        rtcCommitScene(lampScene_);
+    }
 }
 
 RayCaster::~RayCaster() {
+    if (lampScene_) rtcReleaseScene(lampScene_);
     if (scene_) rtcReleaseScene(scene_);
     if (device_) rtcReleaseDevice(device_);
 }
@@ -166,12 +186,13 @@ void castPackets(RTCScene scene, int n, Segment segment, Visible visible) {
 
 }  // namespace
 
-void RayCaster::visibleMask(const Vec3& from, const Vec3* to, int n, char* visible) const {
-    if (numTriangles_ == 0) {
+void RayCaster::visibleMask(const Vec3& from, const Vec3* to, int n, char* visible, bool lampRay) const {
+    const bool lamp = lampRay && lampScene_;
+    if ((lamp ? numLampTriangles_ : numTriangles_) == 0) {
         std::fill(visible, visible + std::max(n, 0), char(1));
         return;
     }
-    castPackets(scene_, n, [&](int k) { return std::make_pair(from, to[k]); },
+    castPackets(lamp ? lampScene_ : scene_, n, [&](int k) { return std::make_pair(from, to[k]); },
                 [&](int k, bool v) { visible[k] = v ? 1 : 0; });
 }
 

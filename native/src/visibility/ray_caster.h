@@ -29,7 +29,8 @@ public:
     // visible[i] = 1 when nothing blocks the open segment (from[i], to[i]), else 0; 16-wide packets.
     void visiblePairs(const Vec3* from, const Vec3* to, int n, char* visible) const;
     // visible[i] = 1 when nothing blocks the open segment (from, to[i]), else 0; 16-wide packets.
-    void visibleMask(const Vec3& from, const Vec3* to, int n, char* visible) const;
+    // `lampRay`: a point, spot or sun lamp's shadow ray, which polygons without blocksLamps let through.
+    void visibleMask(const Vec3& from, const Vec3* to, int n, char* visible, bool lampRay = false) const;
     // True when no occluding polygon other than the two named ones can cross the shaft between the
     // boxes (Haines-Wallace): every segment between them is then unblocked without casting a ray.
     bool shaftIsClear(const Bounds& a, const Bounds& b, int skipPolygonA, int skipPolygonB) const;
@@ -45,7 +46,8 @@ public:
 private:
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
-    size_t numTriangles_ = 0;
+    RTCScene lampScene_ = nullptr;      // without the polygons lamps' shadow rays pass; null when there are none
+    size_t numTriangles_ = 0, numLampTriangles_ = 0;
     BoxTree occluders_;                 // boxes of occluding polygons
     std::vector<int> occluderPolygon_;  // scene polygon of each box
     std::vector<int> triPolygon_;       // scene polygon of each Embree triangle
