@@ -22,7 +22,7 @@ run_or_start() {  # run_or_start NAME LOG FUNCTION
   fi
   mkdir -p "$(dirname "$log")"
   echo "== $name: started in the background, log $log"
-  setsid bash -c "$(declare -f "$fn"); $(declare -p BUILD ROOT ASAN_BUILD 2>/dev/null || true); set -euo pipefail; $fn" \
+  setsid bash -c "$(declare -f "$fn"); $(declare -p BUILD ROOT ASAN_BUILD ASAN_SKIP 2>/dev/null || true); set -euo pipefail; $fn" \
     > "$log" 2>&1 &
   BG_PIDS+=("$!") BG_LOGS+=("$log") BG_NAMES+=("$name")
 }
@@ -47,6 +47,15 @@ release_tests() {
 }
 # Only penumbra_tests: the Python module under ASan would need the runtime preloaded into python.
 # native/lsan.supp: FFTW's plan cache and Mesa's internals live until exit by design.
+# Three tests are left out here (PENUMBRA_ASAN_ALL=1 runs them too): each solves at the default epsilon several
+# times for a numerical claim that the release ctest of both legs checks, through code that lighter tests run
+# under ASan as well, and together they were about 60 % of this pass's CPU (ASan costs 6-7 times the release
+# build's CPU on the solver): Furnace.HighAlbedoTessellatedTwoThreads (checkFurnace, as Furnace.HalfAlbedo,
+# on more walls and two threads), Solve.ThreadCountDoesNotChangeTheResult (one- and two-thread solves, as
+# Solve.ClusterLinksAreBitIdenticalAcrossThreadCounts) and ErrorEstimate.FollowsTheMeasuredErrorAsEpsilonFalls
+# (four solves of litRoom, which Golden.LitRoom... and ConvolutionLink.ASceneWithoutSites... solve too; estimateError
+# runs in every solve).
+ASAN_SKIP='^(Furnace\.HighAlbedoTessellatedTwoThreads|Solve\.ThreadCountDoesNotChangeTheResult|ErrorEstimate\.FollowsTheMeasuredErrorAsEpsilonFalls)$'
 asan_tests() {
   if [ ! -f "$ASAN_BUILD/CMakeCache.txt" ]; then
     cmake -S . -B "$ASAN_BUILD" -DPENUMBRA_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
@@ -58,8 +67,9 @@ asan_tests() {
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 \
     LSAN_OPTIONS=suppressions="$ROOT/native/lsan.supp" \
     UBSAN_OPTIONS=halt_on_error=1:print_stacktrace=1 \
-    ctest --output-on-failure -j"$(nproc)"
+    ctest --output-on-failure -j"$(nproc)" ${ASAN_SKIP:+-E "$ASAN_SKIP"}
 }
+if [ "${PENUMBRA_ASAN_ALL:-0}" = 1 ]; then ASAN_SKIP=""; fi
 if [ "${PENUMBRA_SKIP_ASAN:-0}" = 1 ]; then
   echo "== C++ unit tests under ASan + UBSan: skipped (PENUMBRA_SKIP_ASAN=1; the sid leg sets it, the host leg runs them)"
 else
