@@ -4,6 +4,7 @@ import os
 
 import bpy
 import numpy as np
+import pytest
 
 import cornell_box
 from conftest import HERE
@@ -45,24 +46,35 @@ def _relative_rms(scene, penumbra, ref, **solver):
     return float(np.sqrt(diff2 / ref2)), float(np.sqrt(noise2 / ref2)), report
 
 
-def test_cornell_box_matches_cycles(empty_scene, penumbra):
+@pytest.fixture(scope="module")
+def reference():
     with open(REFERENCE) as f:
-        ref = json.load(f)
+        return json.load(f)
+
+
+@pytest.fixture(scope="module")
+def default_bake(penumbra, reference):
+    """The box baked at the solver's defaults (clustering on): what both tests below compare, baked once (the
+    clustering test baked it a second time with clustering=True, the default)."""
+    bpy.ops.wm.read_homefile(use_empty=True)
     cornell_box.build()
-    rel, noise, report = _relative_rms(empty_scene, penumbra, ref, **SOLVER)
+    return _relative_rms(bpy.context.scene, penumbra, reference, **SOLVER)
+
+
+def test_cornell_box_matches_cycles(default_bake):
+    rel, noise, report = default_bake
     print(f"Cornell box vs Cycles: relative RMS {rel:.4f} over per-face averages (reference noise {noise:.4f}); "
           f"solve {report['times']['solve']:.2f} s, {report['elements']} elements, {report['links']} links")
     assert noise < 0.01
     assert rel < MAX_RELATIVE_RMS
 
 
-def test_clustering_is_no_worse_on_the_cornell_box(empty_scene, penumbra):
+def test_clustering_is_no_worse_on_the_cornell_box(empty_scene, penumbra, reference, default_bake):
     """Issue 3: clusters must not cost accuracy where every face pair could be linked directly."""
-    with open(REFERENCE) as f:
-        ref = json.load(f)
+    on, _, report = default_bake
+    assert report["settings"].get("clustering", True) is True
     cornell_box.build()
-    off, _, _ = _relative_rms(empty_scene, penumbra, ref, clustering=False, **SOLVER)
-    on, _, report = _relative_rms(empty_scene, penumbra, ref, clustering=True, **SOLVER)
+    off, _, _ = _relative_rms(empty_scene, penumbra, reference, clustering=False, **SOLVER)
     print(f"Cornell box vs Cycles: clustering on {on:.4f} ({report['clusters']} clusters, {report['cluster_links']} cluster links, {report['links']} links), off {off:.4f}")
     assert report["clusters"] > 1
     # Half a tenth of a percent of slack: the two link structures sample visibility differently.

@@ -92,7 +92,12 @@ def test_albedo_099_closed_box_converges(empty_scene, penumbra):
     hundreds of sweeps, and any loss of energy in the form factors is amplified a hundredfold."""
     rho, strength = 0.99, 0.01
     closed_box("Box", (-1, -1, 0), (1, 1, 2), glowing_white(rho, strength))
-    rep = penumbra.bake(empty_scene, resolution=32, tolerance=1e-7, max_iterations=20000)
+    # Uniform radiosity makes every transfer exact whatever the refinement (as in native/python/test_corpus.py's
+    # furnace), so a coarse epsilon tests the same thing: 1606 iterations either way, corners 0.99999 x exact
+    # (1.00000 at the default epsilon, which took 5 times the CPU). Furnace.HighAlbedoTessellatedTwoThreads
+    # (ctest) keeps a furnace at the default epsilon.
+    rep = penumbra.bake(empty_scene, resolution=32, tolerance=1e-7, max_iterations=20000, epsilon=0.01,
+                        min_size=0.05)
     solver = rep["solver"]
     expected = rho * strength / (1 - rho)
     img = bpy.data.images[rep["outputs"]["Box"]["image"]]
