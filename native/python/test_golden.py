@@ -3,9 +3,14 @@
 The office of examples/scalable_scene.py (1000 polygons) is solved and its radiance at a 3 x 3 grid on every
 face, a baked lightmap and every count of the report must equal the values recorded from main before the
 refactor. t_max is set far above any predicted time so that the convolution's time budget (calibrated on this
-machine's FFTW) decides nothing. When a change is meant to alter the output, re-record from the failure message.
+machine's FFTW) decides nothing. When a change is meant to alter the output, re-record: run this file with
+PENUMBRA_RECORD_GOLDEN=1 (it writes data/golden_office.npz and prints the counts to paste below).
+
+The radiance and the lightmap are compared value by value within 1e-5 relative, not bit by bit: glibc picks
+its atan2 and exp by the CPU's features, so two machines differ in the last bits (the hashes recorded on one
+machine failed on an AMD EPYC with FMA, with every count but the solver's residual equal). A refactor that
+changes a decision moves values far more than that.
 """
-import hashlib
 import os
 import sys
 
@@ -20,21 +25,17 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 
 # Recorded from main at 591f476 (before issue 17's counter registry); re-recorded after issue 11's refiner
 # changes (light-weighted visibility, source-gradient splits), which alter the output by design. Issue 13 added
-# the counters "lights" and "light_rays" (0 here: the office has no analytic lights). Issue 12's contact
-# sub-blockers give the furniture on the floor 4 convolution links (before: 0 made, 119 refused as too coarse),
-# with 22 % fewer rays and links, so the radiance and the lightmap change by design.
-EXPECTED = {
-    "radiance": "c3f3fb157fc99fcc",
-    "lightmap": "e953f1b1e4361191",
-    "counts": {"polygons": 999, "elements": 38675, "leaves": 28916, "links": 1033154, "rays": 68048320,
-               "shafts_clear": 22813, "clusters": 291, "cluster_links": 53423, "convolution_links": 0,
-               "convolution_tried": 122, "convolution_texels": 0, "convolution_max_error": "0x0.0p+0",
-               "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0},
-               "gather_emitters": 4, "iterations": 30, "refine_passes": 3, "lights": 0, "light_rays": 0,
-               "residual": "0x1.7948c1870c4d6p-14", "converged": True, "warnings": 0},
-}
-
-
+# the counters "lights" and "light_rays" (0 here: the office has no analytic lights). Issue 14: reflectors' rays
+# at min_size receivers stop once their standard error is within the threshold (44.7M rays, was 68.0M).
+EXPECTED_COUNTS = {
+    "polygons": 999, "elements": 38675, "leaves": 28916, "links": 1033270, "rays": 44714016, "shafts_clear": 22813,
+    "clusters": 291, "cluster_links": 53420, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
+    "convolution_max_error": 0.0,
+    "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0},
+    "gather_emitters": 4, "iterations": 30, "refine_passes": 3, "lights": 0, "light_rays": 0,
+    "residual": 8.478591177844168e-05, "converged": True, "warnings": 0}
+DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "golden_office.npz")
+RTOL = 1e-5
 
 
 def _faces(scene):
@@ -70,20 +71,42 @@ def _counts(report):
     # The error estimate is derived from what is pinned here (links, radiosities), so it is left out.
     out = {k: v for k, v in report.items() if k not in ("times", "warnings", "error_estimate")}
     out["warnings"] = len(report["warnings"])
-    for k in ("residual", "convolution_max_error"):
-        out[k] = float(out[k]).hex()
     return out
 
 
-def _sha(a):
-    return hashlib.sha256(np.ascontiguousarray(a, np.float32).tobytes()).hexdigest()[:16]
+def _close(got, want):
+    """Counts exactly; the two real numbers within RTOL."""
+    diff = {}
+    for k in set(got) | set(want):
+        g, w = got.get(k), want.get(k)
+        if k in ("residual", "convolution_max_error") and g is not None and w is not None:
+            if abs(g - w) > RTOL * max(abs(w), 1e-300):
+                diff[k] = (g, w)
+        elif g != w:
+            diff[k] = (g, w)
+    return diff
 
 
-def test_office_is_bit_identical_to_the_recorded_run():
+def test_office_matches_the_recorded_run():
     scene = scalable_scene.make_scene(1000)
     solution = _native.solve(**scene, settings=SETTINGS)
     corners = _faces(scene)
     pts, nrm = _probes(corners)
-    got = {"radiance": _sha(solution.radiance(pts, nrm)), "lightmap": _sha(_lightmap(solution, corners)),
-           "counts": _counts(dict(solution.report))}
-    assert got == EXPECTED, f"re-record if intended: {got!r}"
+    radiance = np.asarray(solution.radiance(pts, nrm), np.float32)
+    lightmap = np.asarray(_lightmap(solution, corners), np.float32)
+    counts = _counts(dict(solution.report))
+    if os.environ.get("PENUMBRA_RECORD_GOLDEN"):
+        os.makedirs(os.path.dirname(DATA), exist_ok=True)
+        np.savez_compressed(DATA, radiance=radiance, lightmap=lightmap)
+        print(f"\nEXPECTED_COUNTS = {counts!r}")
+        return
+    want = np.load(DATA)
+    assert not _close(counts, EXPECTED_COUNTS), \
+        f"counts differ (got, recorded): {_close(counts, EXPECTED_COUNTS)}; re-record if intended: {counts!r}"
+    for name, got in (("radiance", radiance), ("lightmap", lightmap)):
+        ref = want[name]
+        assert got.shape == ref.shape, name
+        scale = float(np.abs(ref).max())
+        bad = np.abs(got - ref) > RTOL * np.maximum(np.abs(ref), 1e-3 * scale)
+        assert not bad.any(), (f"{name}: {int(bad.sum())} of {bad.size} values moved, the largest by "
+                               f"{float(np.abs(got - ref).max()):.3g} (peak {scale:.3g}); re-record if intended")

@@ -32,12 +32,12 @@ inline Vec3 normalize(const Vec3& a) {
     double l = length(a);
     return l > 0 ? a / l : Vec3{};
 }
-inline Vec3 vmin(const Vec3& a, const Vec3& b) {
-    return {std::fmin(a.x, b.x), std::fmin(a.y, b.y), std::fmin(a.z, b.z)};
-}
-inline Vec3 vmax(const Vec3& a, const Vec3& b) {
-    return {std::fmax(a.x, b.x), std::fmax(a.y, b.y), std::fmax(a.z, b.z)};
-}
+// std::fmin/fmax's results (NaN dropped, the first of two equal values, so -0 and +0 as glibc gives
+// them) without their library call, which was 4 % of a furnished room's refinement.
+inline double fminOf(double a, double b) { return a <= b || b != b ? a : b; }
+inline double fmaxOf(double a, double b) { return a >= b || b != b ? a : b; }
+inline Vec3 vmin(const Vec3& a, const Vec3& b) { return {fminOf(a.x, b.x), fminOf(a.y, b.y), fminOf(a.z, b.z)}; }
+inline Vec3 vmax(const Vec3& a, const Vec3& b) { return {fmaxOf(a.x, b.x), fmaxOf(a.y, b.y), fmaxOf(a.z, b.z)}; }
 inline bool isFinite(const Vec3& a) {
     return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
 }
@@ -45,7 +45,7 @@ inline bool isFinite(const Vec3& a) {
 // RGB quantities (reflectance, radiosity, irradiance) are carried per colour channel.
 using Rgb = Vec3;
 inline Rgb mul(const Rgb& a, const Rgb& b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
-inline double maxComponent(const Vec3& a) { return std::fmax(a.x, std::fmax(a.y, a.z)); }
+inline double maxComponent(const Vec3& a) { return fmaxOf(a.x, fmaxOf(a.y, a.z)); }
 
 // a >= b, with sizes within a millionth counted equal: a choice between two equal faces of a regular mesh
 // (which to split, a cube's split axis) must not hang on the rounding of their coordinates, so that a
