@@ -4,11 +4,13 @@
         [--sizes 100,200,500,1000] [--resolution 32] [--build build/addon] [--label TEXT]
         [--json docs/writeback_results.json] [--plot docs/bench_writeback.png] [--profile N]
 
-Every size is baked in a fresh empty file with penumbra.bake(targets LIGHTMAP and COLOR_ATTRIBUTE) and the
+Every size is baked in a fresh empty file (begin, solve, finish, targets LIGHTMAP and COLOR_ATTRIBUTE) and the
 report's times['write_back'] is the figure: everything after the solve that puts the bake into the .blend
-(UV unwrap, rasterising, images, colour attributes, the commit). The solver is set coarse (epsilon 0.01) so
-that the solve does not dominate the run; it has no effect on the write-back's work, which depends on the
-objects and texels only.
+(UV unwrap, rasterising, images, colour attributes) up to the commit. `finish_s` is the wall time of the whole
+finish() with the commit, `finish_cpu_s` the CPU time of all the process's threads meanwhile (a steadier figure
+than wall time on a shared machine), `other_load` the 1-minute load average less this process. The solver is
+set coarse (epsilon 0.01) so that the solve does not dominate the run; it has no effect on the write-back's
+work, which depends on the objects and texels only.
 
 --profile N bakes N objects under cProfile once more and prints the most expensive calls, by cumulative and
 by own time. --rebake bakes every size a second time over the first (every image and attribute replaced at
@@ -19,12 +21,14 @@ import argparse
 import json
 import os
 import sys
+import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 from addon_env import enable_addon  # noqa: E402
 TARGET_OBJECTS, TARGET_SECONDS = 1000, 1.0
+RESOLUTION = [32]
 
 
 def parse_args():
@@ -47,7 +51,7 @@ def build_scene(n):
     """n cubes of 0.5 m on a square grid 1 m apart, on no floor, and one area light above the middle. Built
     through bpy.data (no operators), so that building costs little beside the bake."""
     import bpy
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.read_homefile(use_empty=True)   # read_factory_settings would unregister the add-on
     scene = bpy.context.scene
     h = 0.25
     verts = [(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)]
@@ -68,21 +72,41 @@ def build_scene(n):
     return scene
 
 
+def bake(penumbra, scene):
+    """The report, and the wall and CPU seconds (all threads of the process) of the whole finish(): the
+    write-back with its commit, which report['times']['write_back'] stops short of."""
+    job = penumbra.begin(scene, resolution=RESOLUTION[0], margin=2, epsilon=0.01,
+                         targets={"LIGHTMAP", "COLOR_ATTRIBUTE"})
+    job.solve()
+    t, c = time.perf_counter(), time.process_time()
+    rep = job.finish()
+    return rep, time.perf_counter() - t, time.process_time() - c
+
+
+def other_load():
+    """The 1-minute load average less this process (about 1 while it runs alone): other work on the machine."""
+    try:
+        return max(0.0, os.getloadavg()[0] - 1.0)
+    except OSError:
+        return None
+
+
 def run(penumbra, n, resolution, rebake):
+    RESOLUTION[0] = resolution
     scene = build_scene(n)
-    rep = penumbra.bake(scene, resolution=resolution, margin=2, epsilon=0.01,
-                        targets={"LIGHTMAP", "COLOR_ATTRIBUTE"})
+    rep, wall, cpu = bake(penumbra, scene)
     baked = len(rep["objects_baked"])
     if baked != n:
         raise SystemExit(f"writeback_scaling: {baked} of {n} objects baked ({rep['skipped'][:3]})")
     t = rep["times"]
     row = {"objects": n, "write_back_s": t["write_back"], "solve_s": t["solve"], "export_s": t["export"],
-           "per_object_ms": 1000.0 * t["write_back"] / n, "resolution": resolution}
+           "per_object_ms": 1000.0 * t["write_back"] / n, "resolution": resolution, "finish_s": wall,
+           "finish_cpu_s": cpu, "other_load": other_load()}
     if rebake:
         # A second bake replaces every image and attribute the first made: the commit's swap path.
-        rep = penumbra.bake(scene, resolution=resolution, margin=2, epsilon=0.01,
-                            targets={"LIGHTMAP", "COLOR_ATTRIBUTE"})
+        rep, wall, cpu = bake(penumbra, scene)
         row["rebake_write_back_s"] = rep["times"]["write_back"]
+        row["rebake_finish_s"] = wall
     return row
 
 
@@ -114,13 +138,16 @@ def main():
         r = run(penumbra, n, args.resolution, args.rebake)
         rows.append(r)
         print(f"{n:6d} objects: write-back {r['write_back_s']:8.3f} s  ({r['per_object_ms']:6.2f} ms/object)  "
-              f"solve {r['solve_s']:.2f} s"
+              f"finish {r['finish_s']:.3f} s ({r['finish_cpu_s']:.3f} CPU s)  solve {r['solve_s']:.2f} s  "
+              f"other load {r['other_load']:.1f}"
               + (f"  re-bake write-back {r['rebake_write_back_s']:.3f} s" if "rebake_write_back_s" in r else ""),
               flush=True)
-    print("\n| objects | write-back s | ms per object | re-bake write-back s |\n|---:|---:|---:|---:|")
+    print("\n| objects | write-back s | ms per object | finish s (with the commit) | finish CPU s | "
+          "re-bake write-back s | other load |\n|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         again = f"{r['rebake_write_back_s']:.3f}" if "rebake_write_back_s" in r else "-"
-        print(f"| {r['objects']} | {r['write_back_s']:.3f} | {r['per_object_ms']:.2f} | {again} |")
+        print(f"| {r['objects']} | {r['write_back_s']:.3f} | {r['per_object_ms']:.2f} | {r['finish_s']:.3f} | "
+              f"{r['finish_cpu_s']:.3f} | {again} | {r['other_load']:.1f} |")
     if args.profile:
         import cProfile
         import pstats

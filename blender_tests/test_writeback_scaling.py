@@ -140,3 +140,69 @@ def test_re_bake_replaces_used_and_unused_lightmaps(empty_scene, penumbra):
         assert img.as_pointer() != ptr and tuple(img.size) == (24, 24)
     assert node.image == bpy.data.images["Penumbra_Cube001"]
     assert bpy.data.images["Penumbra_Cube000"].users == 1          # its fake user only
+
+
+@pytest.mark.parametrize("small_chunks", [False, True])
+def test_batched_write_back_matches_object_by_object(empty_scene, penumbra, monkeypatch, small_chunks):
+    """The write-back bakes every lightmap in chunks over the threads, in a worker thread, and takes the corner
+    colours of all objects in one call: each image and attribute must be what one native call per object gives.
+    With small chunks the worker also waits for the images to be stored (AHEAD_TEXELS)."""
+    from penumbra import writeback
+    if small_chunks:
+        monkeypatch.setattr(writeback, "BATCH_TEXELS", 24 * 24)
+        monkeypatch.setattr(writeback, "AHEAD_TEXELS", 2 * 24 * 24)
+    _cubes(6)
+    ob = bpy.data.objects["Cube002"]
+    ob.rotation_euler = (0.3, 0.2, 0.1)
+    ob.scale = (1.0, 2.0, -0.5)                         # mirrored too
+    settings = {**FAST, "resolution": 24}
+    job = penumbra.begin(empty_scene, **settings)
+    job.solve()
+    rep = job.finish()
+    names = rep["objects_baked"]
+    assert len(names) == 6
+    sol, res = job.solution, settings["resolution"]
+    dg = bpy.context.evaluated_depsgraph_get()
+    for n in names:
+        ob = bpy.data.objects[n]
+        ob_eval = ob.evaluated_get(dg)
+        matrix = np.array(ob_eval.matrix_world, np.float64)
+        me = ob_eval.to_mesh()
+        try:
+            pos, uvs = writeback._lightmap_inputs(me, n, writeback.UV_NAME, matrix)
+            pts, nrm = writeback.corner_samples(me, matrix)
+        finally:
+            ob_eval.to_mesh_clear()
+        one = sol.bake_lightmap(pos, uvs, res, res, settings["margin"])
+        img = bpy.data.images["Penumbra_" + n]
+        px = np.empty(len(img.pixels), np.float32)
+        img.pixels.foreach_get(px)
+        np.testing.assert_array_equal(px.reshape(res, res, 4), one)
+        assert one[..., :3].max() > 0
+        col = np.empty(len(pts) * 4, np.float32)
+        ob.data.attributes["Penumbra"].data.foreach_get("color", col)
+        np.testing.assert_array_equal(col.reshape(-1, 4)[:, :3], sol.radiance(pts, nrm))
+        assert writeback.uv_overlap(uvs, res) == penumbra._native.uv_overlaps([uvs], res)[0]
+
+
+def test_failure_while_images_are_stored_changes_nothing(empty_scene, penumbra, monkeypatch):
+    """A failure after some lightmaps are stored (and every colour attribute written) rolls all of it back,
+    and the worker thread that bakes the lightmaps ends with the write-back."""
+    import threading
+    from penumbra import writeback
+    _cubes(5)
+    penumbra.bake(empty_scene, **FAST)
+    before = helpers.blend_state()
+    real, calls = writeback._write_lightmap, {"n": 0}
+
+    def failing(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise RuntimeError("injected failure")
+        return real(*a, **k)
+    monkeypatch.setattr(writeback, "_write_lightmap", failing)
+    monkeypatch.setattr(writeback, "BATCH_TEXELS", 2 * 16 * 16)     # chunks of two lightmaps
+    with pytest.raises(RuntimeError, match="injected failure"):
+        penumbra.bake(empty_scene, **{**FAST, "resolution": 16})
+    helpers.assert_same_state(before, helpers.blend_state())
+    assert not [t for t in threading.enumerate() if t.name == "penumbra-lightmaps"]

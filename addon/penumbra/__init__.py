@@ -184,7 +184,10 @@ class Job:
         if scene is None:
             raise BakeError(f"the scene '{self.scene_name}' was removed while the bake ran")
         vl = scene.view_layers.get(self.view_layer_name) or _view_layer(scene)
-        gone = [n for n in self.exported.bake_objects if n not in bpy.data.objects]
+        objs = {}
+        for o in bpy.data.objects:      # one walk: `name in bpy.data.objects` walks them all for every name
+            objs.setdefault(o.name, o)
+        gone = [n for n in self.exported.bake_objects if n not in objs]
         if gone:
             raise BakeError(f"object(s) removed or renamed while the bake ran: {', '.join(gone)}; bake again")
         report, s = self.report, self.settings
@@ -201,8 +204,8 @@ class Job:
             step("done", 1.0)
 
         # A preview built for the other kind of bake (irradiance or not) would show the new one wrongly.
-        shown = {n: bool(writeback.baked_state(bpy.data.objects[n]).get("irradiance"))
-                 for n in self.exported.bake_objects if bpy.data.objects[n].get(_preview.STATE) is not None}
+        shown = {n: bool(writeback.baked_state(objs[n]).get("irradiance"))
+                 for n in self.exported.bake_objects if objs[n].get(_preview.STATE) is not None}
         with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
             ws = dict(s)

@@ -34,6 +34,26 @@ class Transaction:
         self._undo = []
         self._commit = []
         self._discard = []
+        self._index = {}
+
+    def index(self, collection, key="name"):
+        """{key: data-block} of bpy.data.<collection>, made once per commit: a lookup by name in bpy.data walks
+        the whole collection, so one per object made the commit of N objects cost N^2. Commit steps that
+        rename a data-block of it update it (`renamed`)."""
+        idx = self._index.get((collection, key))
+        if idx is None:
+            idx = {}
+            for d in getattr(bpy.data, collection):
+                idx.setdefault(getattr(d, key), d)     # the first of equal names, as bpy.data[name] gives
+            self._index[(collection, key)] = idx
+        return idx
+
+    def renamed(self, collection, old_name, datablock):
+        idx = self._index.get((collection, "name"))
+        if idx is not None:
+            if idx.get(old_name) is not None and idx[old_name] == datablock:
+                del idx[old_name]
+            idx.setdefault(datablock.name, datablock)
 
     def discard(self, datablock):
         """Remove `datablock` once every commit step has run, in one batch with the others."""
@@ -46,8 +66,11 @@ class Transaction:
         self._commit.append(fn)
 
     def commit(self):
-        for fn in self._commit:
-            fn()
+        try:
+            for fn in self._commit:
+                fn()
+        finally:
+            self._index.clear()
         if self._discard:
             bpy.data.batch_remove(self._discard)
             self._discard.clear()
@@ -221,39 +244,65 @@ def prepare_uvs(objects, scene, view_layer, uv_setting, tx):
 
 # ---------------------------------------------------------------------------------------------- sampling
 
-def _world_loop_triangles(me, matrix):
+class _MeshCache:
+    """World vertices and face normals of one mesh under one transform, computed once for the lightmap, the
+    corner colours and the front-side check (each computed the same numbers on its own)."""
+
+    def __init__(self, me, matrix):
+        self.me, self.matrix = me, matrix
+        self._co_w = self._nw = None
+
+    def co_w(self):
+        if self._co_w is None:
+            me, matrix = self.me, self.matrix
+            co = _get(me.vertices, "co", len(me.vertices), np.float32, 3).astype(np.float64)
+            self._co_w = co @ matrix[:3, :3].T + matrix[:3, 3]
+        return self._co_w
+
+    def face_normals(self):
+        """World normal of every face (normals transform with the inverse transpose)."""
+        if self._nw is None:
+            me = self.me
+            pn = _get(me.polygons, "normal", len(me.polygons), np.float32, 3).astype(np.float64)
+            nw = pn @ np.linalg.inv(self.matrix[:3, :3])
+            nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)
+            self._nw = nw
+        return self._nw
+
+
+def _cache(me, matrix, cache):
+    return cache if cache is not None and cache.me == me and cache.matrix is matrix else _MeshCache(me, matrix)
+
+
+def _world_loop_triangles(me, matrix, cache=None):
     me.calc_loop_triangles()
     n_tri = len(me.loop_triangles)
-    co = _get(me.vertices, "co", len(me.vertices), np.float32, 3).astype(np.float64)
-    co_w = co @ matrix[:3, :3].T + matrix[:3, 3]
+    co_w = _cache(me, matrix, cache).co_w()
     tri_v = _get(me.loop_triangles, "vertices", n_tri, np.int32, 3)
     tri_l = _get(me.loop_triangles, "loops", n_tri, np.int32, 3)
     return co_w, tri_v, tri_l
 
 
-def lightmap_inputs(ob_eval, uv_name, matrix):
-    """World-space corners (T,3,3) and UVs (T,3,2) of the evaluated mesh's loop triangles."""
-    me = ob_eval.to_mesh()
-    try:
-        if uv_name not in me.uv_layers:
-            raise WritebackError(f"object '{ob_eval.name}': the UV map '{uv_name}' does not survive its "
-                                 f"modifiers")
-        co_w, tri_v, tri_l = _world_loop_triangles(me, matrix)
-        uv = _get(me.uv_layers[uv_name].data, "uv", len(me.loops), np.float32, 2)
-        if np.linalg.det(matrix[:3, :3]) < 0:
-            # A mirroring transform reverses the winding, and the solver takes a triangle's side from its
-            # winding: without this a mirrored object's lightmap would hold the light behind each face.
-            tri_v, tri_l = tri_v[:, [0, 2, 1]], tri_l[:, [0, 2, 1]]
-        positions = np.ascontiguousarray(co_w[tri_v], np.float32)
-        uvs = np.ascontiguousarray(uv[tri_l], np.float32)
-    finally:
-        ob_eval.to_mesh_clear()
+def _lightmap_inputs(me, name, uv_name, matrix, cache=None):
+    """World-space corners (T,3,3) and UVs (T,3,2) of an evaluated mesh's loop triangles."""
+    if uv_name not in me.uv_layers:
+        raise WritebackError(f"object '{name}': the UV map '{uv_name}' does not survive its modifiers")
+    co_w, tri_v, tri_l = _world_loop_triangles(me, matrix, cache)
+    uv = _get(me.uv_layers[uv_name].data, "uv", len(me.loops), np.float32, 2)
+    if np.linalg.det(matrix[:3, :3]) < 0:
+        # A mirroring transform reverses the winding, and the solver takes a triangle's side from its
+        # winding: without this a mirrored object's lightmap would hold the light behind each face.
+        tri_v, tri_l = tri_v[:, [0, 2, 1]], tri_l[:, [0, 2, 1]]
+    positions = np.ascontiguousarray(co_w[tri_v], np.float32)
+    uvs = np.ascontiguousarray(uv[tri_l], np.float32)
     return positions, uvs
 
 
 def uv_overlap(uvs, grid=256, chunk=200000):
     """Fraction of the covered texel centres (on a grid x grid raster) that lie strictly inside more than one
-    UV triangle, from (T, 3, 2) UVs. Overlapping islands share texels, so those faces all get one light."""
+    UV triangle, from (T, 3, 2) UVs. Overlapping islands share texels, so those faces all get one light.
+    The write-back uses the native module's uv_overlaps, which does this for many objects at once with the
+    same arithmetic (blender_tests/test_writeback_scaling.py compares the two)."""
     t = np.asarray(uvs, np.float64) * grid - 0.5        # texel centre j sits at coordinate j
     a, b, c = t[:, 0], t[:, 1], t[:, 2]
     det = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (c[:, 0] - a[:, 0]) * (b[:, 1] - a[:, 1])
@@ -289,17 +338,14 @@ def uv_overlap(uvs, grid=256, chunk=200000):
     return float((counts > 1).sum()) / covered if covered else 0.0
 
 
-def corner_samples(me, matrix):
+def corner_samples(me, matrix, cache=None):
     """World position of every corner and the world normal of its face, for a mesh in its own loop order."""
     n_loops, n_poly = len(me.loops), len(me.polygons)
-    co = _get(me.vertices, "co", len(me.vertices), np.float32, 3).astype(np.float64)
-    co_w = co @ matrix[:3, :3].T + matrix[:3, 3]
+    cache = _cache(me, matrix, cache)
+    co_w = cache.co_w()
     lv = _get(me.loops, "vertex_index", n_loops, np.int32)
     loop_total = _get(me.polygons, "loop_total", n_poly, np.int32)
-    pn = _get(me.polygons, "normal", n_poly, np.float32, 3).astype(np.float64)
-    # Normals transform with the inverse transpose.
-    nw = pn @ np.linalg.inv(matrix[:3, :3])
-    nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)
+    nw = cache.face_normals()
     loop_poly = np.repeat(np.arange(n_poly), loop_total)
     return (np.ascontiguousarray(co_w[lv], np.float32), np.ascontiguousarray(nw[loop_poly], np.float32))
 
@@ -328,187 +374,337 @@ def _our_attribute(me, old):
     return name
 
 
-def _check_front_light(ob, ob_eval, matrix, solution, report):
+def _front_samples(me, matrix, cache=None):
+    """World centres, normals and areas of (a sample of) the faces, for the front-light check; None without faces."""
+    n = len(me.polygons)
+    if n == 0:
+        return None
+    centre = _get(me.polygons, "center", n, np.float32, 3).astype(np.float64)
+    area = _get(me.polygons, "area", n, np.float32).astype(np.float64)
+    step = max(1, n // 20000)             # a sample is enough for a warning
+    centre, area = centre[::step], area[::step]
+    cw = centre @ matrix[:3, :3].T + matrix[:3, 3]
+    if step == 1:
+        nw = _cache(me, matrix, cache).face_normals()
+    else:
+        normal = _get(me.polygons, "normal", n, np.float32, 3).astype(np.float64)[::step]
+        nw = normal @ np.linalg.inv(matrix[:3, :3])
+        nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)
+    return np.ascontiguousarray(cw, np.float32), np.ascontiguousarray(nw, np.float32), area
+
+
+def _front_warning(name, area, rgb):
     """Penumbra's surfaces receive and reflect light on their front (normal) side only, where Cycles shades
     both sides of a face. A mesh whose faces mostly get no light on the front usually has flipped normals;
     say so, since its bake will be dark where a render is lit."""
-    me = ob_eval.to_mesh()
-    try:
-        n = len(me.polygons)
-        if n == 0:
-            return
-        centre = _get(me.polygons, "center", n, np.float32, 3).astype(np.float64)
-        normal = _get(me.polygons, "normal", n, np.float32, 3).astype(np.float64)
-        area = _get(me.polygons, "area", n, np.float32).astype(np.float64)
-    finally:
-        ob_eval.to_mesh_clear()
-    step = max(1, n // 20000)             # a sample is enough for a warning
-    centre, normal, area = centre[::step], normal[::step], area[::step]
-    cw = centre @ matrix[:3, :3].T + matrix[:3, 3]
-    nw = normal @ np.linalg.inv(matrix[:3, :3])
-    nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-30)
-    rgb = np.asarray(solution.radiance(np.ascontiguousarray(cw, np.float32),
-                                       np.ascontiguousarray(nw, np.float32)))
-    dark = area[rgb.max(axis=1) <= 0].sum() / max(area.sum(), 1e-30)
+    dark = area[np.asarray(rgb).max(axis=1) <= 0].sum() / max(area.sum(), 1e-30)
     if dark > 0.5:
-        report["warnings"].append(
-            f"object '{ob.name}': {100 * dark:.0f} % of its surface receives no light on its front side. "
-            f"Penumbra lights faces on the side their normals point to; Cycles lights both sides, so a render "
-            f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals)")
+        return (f"object '{name}': {100 * dark:.0f} % of its surface receives no light on its front side. "
+                f"Penumbra lights faces on the side their normals point to; Cycles lights both sides, so a render "
+                f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals)")
+    return None
 
 
-def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, report, files, reflects=True,
-                 albedo=None):
-    """Rasterise and store one object's bake. Nothing here replaces earlier results: that is the commit.
+def _radiance_of_all(solution, samples, irradiance=False):
+    """solution.radiance of every (points, normals) pair of `samples` (None entries give None), in one call:
+    each point's radiance is computed alone, so the values are the ones a call per object gives."""
+    sizes = [0 if x is None else len(x[0]) for x in samples]
+    if not sum(sizes):
+        return [None if x is None else np.zeros((0, 3), np.float32) for x in samples]
+    pts = np.ascontiguousarray(np.concatenate([x[0] for x in samples if x is not None]), np.float32)
+    nrm = np.ascontiguousarray(np.concatenate([x[1] for x in samples if x is not None]), np.float32)
+    rgb = np.asarray(solution.radiance(pts, nrm, irradiance=irradiance), np.float32)
+    if rgb.shape != (len(pts), 3):
+        raise WritebackError(f"the solver returned radiance of shape {rgb.shape}, expected {(len(pts), 3)}")
+    out, i = [], 0
+    for x, n in zip(samples, sizes):
+        out.append(None if x is None else rgb[i:i + n])
+        i += n
+    return out
 
-    `albedo`: the object's albedo per lightmap texel (albedo.py), for a material whose colour varies; its
-    lightmap is then the solver's irradiance times that albedo. With settings["irradiance"] every target holds
-    the irradiance E/pi without any albedo."""
+
+# Lightmaps baked per native call at most: the call holds about 60 bytes per texel while it runs.
+BATCH_TEXELS = 1 << 21
+# Texels baked but not yet stored in their images at most (16 bytes each) before the worker waits for the
+# main thread: a bake of many large lightmaps holds a few of them at a time, not all.
+AHEAD_TEXELS = 1 << 23
+
+
+class _Job:
+    """One object's write-back: what is read from it first, then what the batched native calls give."""
+    __slots__ = ("name", "uv_name", "uv_created", "albedo", "reflects", "old", "record", "front", "front_rgb",
+                 "positions", "uvs", "uv_outside", "shared", "pixels", "corners", "corner_rgb", "other_topology")
+
+
+def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo):
+    """Everything the write-back needs of one object's evaluated mesh, from one evaluation of it."""
     targets = settings["targets"]
-    irradiance = bool(settings.get("irradiance"))
-    res, margin = settings["resolution"], settings["margin"]
+    job = _Job()
+    job.name, job.uv_name, job.uv_created, job.albedo, job.reflects = ob.name, uv_name, uv_created, albedo, reflects
+    job.old = baked_state(ob)
+    job.record = {"uv_map": uv_name, "uv_created": bool(uv_created or job.old.get("uv_created", False)) and
+                  uv_name == UV_NAME, "irradiance": bool(settings.get("irradiance"))}
+    job.front = job.front_rgb = job.positions = job.uvs = job.pixels = job.corners = job.corner_rgb = None
+    job.uv_outside, job.shared, job.other_topology = False, 0.0, False
     ob_eval = ob.evaluated_get(dg)
     matrix = np.array(ob_eval.matrix_world, np.float64)
-    if reflects:
-        # A black object reflects nothing whatever it receives, so its zero radiance says nothing of sides.
-        _check_front_light(ob, ob_eval, matrix, solution, report)
-    old = baked_state(ob)
-    record = {"uv_map": uv_name, "uv_created": bool(uv_created or old.get("uv_created", False)) and
-              uv_name == UV_NAME, "irradiance": irradiance}
-    outputs = {}
+    me = ob_eval.to_mesh()
+    try:
+        cache = _MeshCache(me, matrix)
+        if reflects:
+            # A black object reflects nothing whatever it receives, so its zero radiance says nothing of sides.
+            job.front = _front_samples(me, matrix, cache)
+        if "LIGHTMAP" in targets:
+            job.positions, job.uvs = _lightmap_inputs(me, ob_eval.name, uv_name, matrix, cache)
+            uvs = job.uvs
+            job.uv_outside = bool(len(uvs) and (uvs.min() < -1e-4 or uvs.max() > 1 + 1e-4))
+        if "COLOR_ATTRIBUTE" in targets:
+            base = ob.data
+            if len(me.loops) == len(base.loops) and len(me.polygons) == len(base.polygons):
+                job.corners = corner_samples(me, matrix, cache)
+            else:
+                job.other_topology = True
+                job.corners = corner_samples(base, matrix)
+    finally:
+        ob_eval.to_mesh_clear()
+    return job
 
-    shared = 0.0
+
+class _LightmapBaker:
+    """Bakes lightmaps in a worker thread while the main thread goes on with the Blender side: the native call
+    releases the GIL and never touches bpy. Jobs come in chunks of at most BATCH_TEXELS texels (and 64 objects,
+    so the first images can be stored while later ones bake); wait(job) returns once the job's chunk is baked,
+    and the worker stays at most AHEAD_TEXELS ahead of the images stored."""
+
+    def __init__(self, solution, res, margin, irradiance):
+        import queue
+        import threading
+        self.args = (solution, res, margin, irradiance)
+        self.per = max(1, min(64, BATCH_TEXELS // (res * res)))
+        self.pending = []
+        self.queue = queue.Queue()
+        self.error = None
+        self.stop = False
+        self.done = {}                 # id(job) -> threading.Event of its chunk
+        self.ahead = 0                 # texels baked and not stored yet
+        self.room = threading.Condition()
+        self._event = threading.Event
+        self.thread = threading.Thread(target=self._run, name="penumbra-lightmaps", daemon=True)
+        self.thread.start()
+
+    def add(self, job):
+        self.pending.append(job)
+        if len(self.pending) >= self.per:
+            self.flush()
+
+    def flush(self):
+        if self.pending:
+            ev = self._event()
+            for j in self.pending:
+                self.done[id(j)] = ev
+            self.queue.put((self.pending, ev))
+            self.pending = []
+
+    def _run(self):
+        solution, res, margin, irradiance = self.args
+        while True:
+            item = self.queue.get()
+            if item is None:
+                return
+            chunk, ev = item
+            texels = len(chunk) * res * res
+            try:
+                with self.room:
+                    # Chunks are baked in the main thread's order of storing, so when it waits for this one
+                    # every earlier one is stored and `ahead` is 0: this never waits for a waiting thread.
+                    while self.ahead and self.ahead + texels > AHEAD_TEXELS and not self.stop:
+                        self.room.wait()
+                if not self.stop and self.error is None:
+                    px = solution.bake_lightmaps([j.positions for j in chunk], [j.uvs for j in chunk], res, res,
+                                                 margin, irradiance=[irradiance or j.albedo is not None
+                                                                     for j in chunk])
+                    px = np.asarray(px)
+                    if px.shape != (len(chunk), res, res, 4):
+                        raise WritebackError(f"the solver returned lightmaps of shape {px.shape}, expected "
+                                             f"{(len(chunk), res, res, 4)}")
+                    for j, p in zip(chunk, px):
+                        j.pixels = p
+                    with self.room:
+                        self.ahead += texels
+            except BaseException as e:      # re-raised in the main thread by wait()
+                self.error = e
+            finally:
+                ev.set()
+
+    def wait(self, job):
+        self.done[id(job)].wait()
+        if self.error is not None:
+            raise self.error
+
+    def stored(self, job):
+        """The job's lightmap is in its image: its texels no longer count against AHEAD_TEXELS."""
+        res = self.args[1]
+        with self.room:
+            self.ahead -= res * res
+            self.room.notify()
+
+    def close(self):
+        """Let the worker finish what it was given and end; after a failure elsewhere, nothing more is baked."""
+        with self.room:
+            self.room.notify()
+        self.queue.put(None)
+        self.thread.join()
+
+
+def _write_attribute(ob, job, settings, tx, outputs):
+    """The colour attribute of one object, under a temporary name until the commit."""
+    rgb = job.corner_rgb
+    pts = job.corners[0]
+    if rgb.shape != (len(pts), 3) or not np.isfinite(rgb).all():
+        raise WritebackError(f"object '{ob.name}': the solver returned invalid corner radiance")
+    rgba = np.ones((len(pts), 4), np.float32)
+    rgba[:, :3] = rgb
+    base = ob.data
+    attrs = base.color_attributes
+    old_active = attrs.active_color.name if attrs.active_color else None
+    old_render = attrs.keys()[attrs.render_color_index] if 0 <= attrs.render_color_index < len(attrs) \
+        else None
+    attr_name = _our_attribute(base, job.old)
+    had_old = attr_name in base.attributes
+    new_name = attr_name + ".penumbra-new" if had_old else attr_name
+    ca = attrs.new(name=new_name, type="FLOAT_COLOR", domain="CORNER")
+    ca_name, mesh_name = ca.name, base.name_full
+
+    def drop(ca_name=ca_name, mesh_name=mesh_name):
+        m = bpy.data.meshes.get(mesh_name)
+        if m is not None and ca_name in m.attributes:
+            m.attributes.remove(m.attributes[ca_name])
+    tx.on_rollback(drop)
+    ca.data.foreach_set("color", rgba.ravel())
+
+    def swap_attr(ca_name=ca_name, mesh_name=mesh_name, had_old=had_old, old_active=old_active,
+                  old_render=old_render, attr_name=attr_name):
+        m = tx.index("meshes", "name_full")[mesh_name]
+        if had_old and ca_name != attr_name:
+            m.attributes.remove(m.attributes[attr_name])
+            m.attributes[ca_name].name = attr_name
+        a = m.color_attributes
+        keys = a.keys()
+        # Keep the user's active and render color attributes; the preview names ours explicitly.
+        if old_active and old_active in keys:
+            a.active_color = a[old_active]
+        if old_render and old_render in keys:
+            a.render_color_index = keys.index(old_render)
+    tx.on_commit(swap_attr)
+    job.record["attribute"] = attr_name
+    outputs["attribute"] = attr_name
+
+
+def _warnings(ob, job, targets, report):
+    """The object's warnings, in the order a write-back object by object gave them."""
+    if job.front is not None:
+        w = _front_warning(ob.name, job.front[2], job.front_rgb)
+        if w:
+            report["warnings"].append(w)
     if "LIGHTMAP" in targets:
-        positions, uvs = lightmap_inputs(ob_eval, uv_name, matrix)
-        if len(uvs) and (uvs.min() < -1e-4 or uvs.max() > 1 + 1e-4):
-            report["warnings"].append(f"object '{ob.name}': UV map '{uv_name}' leaves the [0, 1] square; "
+        if job.uv_outside:
+            report["warnings"].append(f"object '{ob.name}': UV map '{job.uv_name}' leaves the [0, 1] square; "
                                       f"texels outside it are lost")
-        shared = uv_overlap(uvs, min(res, 256))
-        if shared > OVERLAP_WARN:
+        if job.shared > OVERLAP_WARN:
             mods = [m.name for m in ob.modifiers if m.type in ("ARRAY", "MIRROR") and m.show_render]
             why = (f" (its modifier(s) {', '.join(mods)} copy faces onto the same UVs)" if mods else "")
             report["warnings"].append(
-                f"object '{ob.name}': {100 * shared:.0f} % of its lightmap texels are shared by overlapping "
-                f"faces of UV map '{uv_name}'{why}; those faces show one light in the lightmap, which is wrong "
+                f"object '{ob.name}': {100 * job.shared:.0f} % of its lightmap texels are shared by overlapping "
+                f"faces of UV map '{job.uv_name}'{why}; those faces show one light in the lightmap, which is wrong "
                 f"for all but one of them: apply the modifiers, or give every face its own UV space")
-        px = solution.bake_lightmap(positions, uvs, res, res, margin,
-                                    irradiance=irradiance or albedo is not None)
-        px = np.array(px, np.float32)
-        if px.shape != (res, res, 4):
-            raise WritebackError(f"object '{ob.name}': the solver returned a lightmap of shape {px.shape}, "
-                                 f"expected {(res, res, 4)}")
-        if albedo is not None and not irradiance:
-            if albedo.shape != (res, res, 3):
-                raise WritebackError(f"object '{ob.name}': albedo bake of shape {albedo.shape}, expected "
-                                     f"{(res, res, 3)}")
-            # Cycles' diffuse colour at each texel times the light arriving there: what its DIFFUSE bake with
-            # Direct + Indirect + Color holds, texel by texel.
-            px[:, :, :3] *= np.maximum(albedo, 0.0)
-        if not np.isfinite(px).all():
-            raise WritebackError(f"object '{ob.name}': the solver returned non-finite lightmap texels")
-        final = IMAGE_PREFIX + ob.name
-        old_img = bpy.data.images.get(old.get("image", "")) if old.get("image") else None
-        if old_img is not None and not old_img.get("penumbra"):
-            old_img = None            # the name was reused by an image that is not ours: leave it alone
-        img = bpy.data.images.new(final if old_img is None else final + ".penumbra-new", res, res,
-                                  alpha=False, float_buffer=True)
-        img_name = img.name
-        tx.on_rollback(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
-                       if n in bpy.data.images else None)
-        img.pixels.foreach_set(px.ravel())
-        img.update()
-        img.pack()                 # float32 EXR inside the .blend; exact with alpha off (blender-facts §3)
-        img.use_fake_user = True   # kept in the .blend even when no material shows it
-        img["penumbra"] = True
-        if settings.get("output_dir"):
-            path = os.path.join(settings["output_dir"], _safe_filename(final) + ".exr")
-            if path in files.values():
-                raise WritebackError(f"object '{ob.name}': two objects would write the lightmap file {path}")
-            # The writer picks the format by the extension, so the temporary name ends in .exr too.
-            tmp = f"{path[:-4]}.{uuid.uuid4().hex[:8]}.tmp.exr"
-            files[tmp] = path
-            tx.on_rollback(lambda tmp=tmp: os.path.exists(tmp) and os.remove(tmp))
-            native.write_exr(tmp, px)
-            outputs["exr"] = path
+    if "COLOR_ATTRIBUTE" in targets and job.other_topology:
+        # Not "the lightmap follows the modified surface" when the modifier's copies share texels:
+        # then neither target is right for the copies, and the overlap warning says so.
+        follows = "" if job.shared > OVERLAP_WARN or "LIGHTMAP" not in targets else \
+            " (the lightmap follows the modified surface)"
+        report["warnings"].append(
+            f"object '{ob.name}': modifiers change the topology, so the colour attribute holds the "
+            f"light of the mesh before its modifiers, and the faces they add show that light too"
+            f"{follows}")
 
-        def swap(img_name=img_name, final=final, old_name=old_img.name if old_img else None):
-            new = bpy.data.images[img_name]
-            if old_name and old_name in bpy.data.images:
-                o = bpy.data.images[old_name]
-                # Remapping and removing each walk every data-block of the file, so doing both for every
-                # object made a re-bake quadratic: remap only an image something uses besides its fake user,
-                # and remove the old images together after the last swap.
-                if o.users > int(o.use_fake_user):
-                    o.user_remap(new)
-                o.name = old_name + ".penumbra-old"
-                tx.discard(o)
-            # Renaming onto a taken name renames the other data-block in Blender 3.4; a user's image keeps
-            # its name and ours keeps the suffixed one.
-            want = final if final not in bpy.data.images else old_name
-            if want and new.name != want and want not in bpy.data.images:
-                new.name = want
-            # Blender may have had to pick another name (an unrelated image already called `final`).
-            record["image"] = outputs["image"] = new.name
-        tx.on_commit(swap)
-        record["image"] = outputs["image"] = img_name
 
-    if "COLOR_ATTRIBUTE" in targets:
-        base = ob.data
-        me_eval = ob_eval.to_mesh()
-        try:
-            if len(me_eval.loops) == len(base.loops) and len(me_eval.polygons) == len(base.polygons):
-                pts, nrm = corner_samples(me_eval, matrix)
-            else:
-                # Not "the lightmap follows the modified surface" when the modifier's copies share texels:
-                # then neither target is right for the copies, and the overlap warning says so.
-                follows = "" if shared > OVERLAP_WARN or "LIGHTMAP" not in targets else \
-                    " (the lightmap follows the modified surface)"
-                report["warnings"].append(
-                    f"object '{ob.name}': modifiers change the topology, so the colour attribute holds the "
-                    f"light of the mesh before its modifiers, and the faces they add show that light too"
-                    f"{follows}")
-                pts, nrm = corner_samples(base, matrix)
-        finally:
-            ob_eval.to_mesh_clear()
-        rgb = np.asarray(solution.radiance(pts, nrm, irradiance=irradiance), np.float32)
-        if rgb.shape != (len(pts), 3) or not np.isfinite(rgb).all():
-            raise WritebackError(f"object '{ob.name}': the solver returned invalid corner radiance")
-        rgba = np.ones((len(pts), 4), np.float32)
-        rgba[:, :3] = rgb
-        attrs = base.color_attributes
-        old_active = attrs.active_color.name if attrs.active_color else None
-        old_render = attrs.keys()[attrs.render_color_index] if 0 <= attrs.render_color_index < len(attrs) \
-            else None
-        attr_name = _our_attribute(base, old)
-        had_old = attr_name in base.attributes
-        new_name = attr_name + ".penumbra-new" if had_old else attr_name
-        ca = attrs.new(name=new_name, type="FLOAT_COLOR", domain="CORNER")
-        ca_name, mesh_name = ca.name, base.name_full
+def _write_lightmap(ob, job, native, settings, tx, files, outputs, images):
+    """The lightmap image (and file) of one object, under temporary names until the commit.
 
-        def drop(ca_name=ca_name, mesh_name=mesh_name):
-            m = bpy.data.meshes.get(mesh_name)
-            if m is not None and ca_name in m.attributes:
-                m.attributes.remove(m.attributes[ca_name])
-        tx.on_rollback(drop)
-        ca.data.foreach_set("color", rgba.ravel())
+    With `job.albedo` (the object's albedo per lightmap texel, albedo.py, for a material whose colour varies)
+    the lightmap is the solver's irradiance times that albedo. With settings["irradiance"] every target holds
+    the irradiance E/pi without any albedo."""
+    res = settings["resolution"]
+    irradiance = bool(settings.get("irradiance"))
+    record, old, albedo = job.record, job.old, job.albedo
+    px = job.pixels
+    if px is None or px.shape != (res, res, 4):
+        raise WritebackError(f"object '{ob.name}': the solver returned a lightmap of shape "
+                             f"{None if px is None else px.shape}, expected {(res, res, 4)}")
+    if albedo is not None and not irradiance:
+        if albedo.shape != (res, res, 3):
+            raise WritebackError(f"object '{ob.name}': albedo bake of shape {albedo.shape}, expected "
+                                 f"{(res, res, 3)}")
+        # Cycles' diffuse colour at each texel times the light arriving there: what its DIFFUSE bake with
+        # Direct + Indirect + Color holds, texel by texel.
+        px[:, :, :3] *= np.maximum(albedo, 0.0)
+    if not np.isfinite(px).all():
+        raise WritebackError(f"object '{ob.name}': the solver returned non-finite lightmap texels")
+    final = IMAGE_PREFIX + ob.name
+    old_img = images.get(old.get("image", "")) if old.get("image") else None
+    if old_img is not None and not old_img.get("penumbra"):
+        old_img = None            # the name was reused by an image that is not ours: leave it alone
+    img = bpy.data.images.new(final if old_img is None else final + ".penumbra-new", res, res,
+                              alpha=False, float_buffer=True)
+    img_name = img.name
+    images.setdefault(img_name, img)
+    tx.on_rollback(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
+                   if n in bpy.data.images else None)
+    img.pixels.foreach_set(px.ravel())
+    img.update()
+    img.pack()                 # float32 EXR inside the .blend; exact with alpha off (blender-facts §3)
+    img.use_fake_user = True   # kept in the .blend even when no material shows it
+    img["penumbra"] = True
+    if settings.get("output_dir"):
+        path = os.path.join(settings["output_dir"], _safe_filename(final) + ".exr")
+        if path in files.values():
+            raise WritebackError(f"object '{ob.name}': two objects would write the lightmap file {path}")
+        # The writer picks the format by the extension, so the temporary name ends in .exr too.
+        tmp = f"{path[:-4]}.{uuid.uuid4().hex[:8]}.tmp.exr"
+        files[tmp] = path
+        tx.on_rollback(lambda tmp=tmp: os.path.exists(tmp) and os.remove(tmp))
+        native.write_exr(tmp, np.ascontiguousarray(px))
+        outputs["exr"] = path
 
-        def swap_attr(ca_name=ca_name, mesh_name=mesh_name, had_old=had_old, old_active=old_active,
-                      old_render=old_render, attr_name=attr_name):
-            m = bpy.data.meshes[mesh_name]
-            if had_old and ca_name != attr_name:
-                m.attributes.remove(m.attributes[attr_name])
-                m.attributes[ca_name].name = attr_name
-            a = m.color_attributes
-            keys = a.keys()
-            # Keep the user's active and render color attributes; the preview names ours explicitly.
-            if old_active and old_active in keys:
-                a.active_color = a[old_active]
-            if old_render and old_render in keys:
-                a.render_color_index = keys.index(old_render)
-        tx.on_commit(swap_attr)
-        record["attribute"] = attr_name
-        outputs["attribute"] = attr_name
+    def swap(img_name=img_name, final=final, old_name=old_img.name if old_img else None):
+        images = tx.index("images")
+        new = images[img_name]
+        if old_name and old_name in images:
+            o = images[old_name]
+            # Remapping and removing each walk every data-block of the file, so doing both for every
+            # object made a re-bake quadratic: remap only an image something uses besides its fake user,
+            # and remove the old images together after the last swap.
+            if o.users > int(o.use_fake_user):
+                o.user_remap(new)
+            o.name = old_name + ".penumbra-old"
+            tx.renamed("images", old_name, o)
+            tx.discard(o)
+        # Renaming onto a taken name renames the other data-block in Blender 3.4; a user's image keeps
+        # its name and ours keeps the suffixed one.
+        want = final if final not in images else old_name
+        if want and new.name != want and want not in images:
+            was = new.name
+            new.name = want
+            tx.renamed("images", was, new)
+        # Blender may have had to pick another name (an unrelated image already called `final`).
+        record["image"] = outputs["image"] = new.name
+    tx.on_commit(swap)
+    record["image"] = outputs["image"] = img_name
 
+
+def _record(ob, job, tx):
+    """What this bake made, on the object's custom property, at the commit."""
+    old = job.old
     old_prop = ob.get(PROP)
     old_prop = old_prop.to_dict() if hasattr(old_prop, "to_dict") else old_prop
     ob_name = ob.name
@@ -523,13 +719,77 @@ def write_object(ob, solution, native, dg, uv_name, uv_created, settings, tx, re
             o[PROP] = old_prop
     tx.on_rollback(restore_prop)
 
-    def set_prop(ob_name=ob_name, record=record, old=old):
-        o = bpy.data.objects[ob_name]
+    def set_prop(ob_name=ob_name, record=job.record, old=old):
+        o = tx.index("objects")[ob_name]
         # Keep what an earlier bake made for a target this bake did not write.
         merged = dict(old)
         merged.update(record)
         o[PROP] = merged
     tx.on_commit(set_prop)
+
+
+def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, files, black=frozenset(),
+                  albedo_maps=None, progress=None):
+    """Rasterise and store the objects' bakes; {name: outputs}. Nothing here replaces earlier results: that
+    is the commit.
+
+    So that the cost per object is Blender's own: each object's evaluated mesh is read once, and its lightmap
+    goes to a worker thread that bakes them in chunks over all the cores (_LightmapBaker) while the main thread
+    reads the next objects, measures the UV overlaps (one native call), takes the corner and front-side
+    radiance (one call each) and writes the colour attributes; last, each object's image is made and packed as
+    soon as its chunk is baked. Every value is the one an object-by-object write-back gives
+    (blender_tests/test_writeback_scaling.py)."""
+    targets = settings["targets"]
+    irradiance = bool(settings.get("irradiance"))
+    albedo_maps = albedo_maps or {}
+    n = max(len(names), 1)
+    images = {}
+    for img in bpy.data.images:
+        images.setdefault(img.name, img)
+
+    def step(frac):
+        if progress is not None:
+            progress("write-back", frac)
+    jobs = []
+    baker = _LightmapBaker(solution, settings["resolution"], settings["margin"], irradiance) \
+        if "LIGHTMAP" in targets else None
+    try:
+        for i, name in enumerate(names):
+            step(0.3 * i / n)
+            job = _gather(objs[name], dg, uv[name][0], uv[name][1], settings, reflects=name not in black,
+                          albedo=albedo_maps.get(name))
+            jobs.append(job)
+            if baker is not None:
+                baker.add(job)
+        if baker is not None:
+            baker.flush()
+            lit = [j for j in jobs if j.uvs is not None]
+            for j, shared in zip(lit, native.uv_overlaps([j.uvs for j in lit], min(settings["resolution"], 256))):
+                j.shared = float(shared)
+        for j, rgb in zip(jobs, _radiance_of_all(solution, [j.front[:2] if j.front is not None else None
+                                                            for j in jobs])):
+            j.front_rgb = rgb
+        outputs = {j.name: {} for j in jobs}
+        if "COLOR_ATTRIBUTE" in targets:
+            for j, rgb in zip(jobs, _radiance_of_all(solution, [j.corners for j in jobs], irradiance=irradiance)):
+                j.corner_rgb = rgb
+            for i, j in enumerate(jobs):
+                step(0.3 + 0.2 * i / n)
+                _write_attribute(objs[j.name], j, settings, tx, outputs[j.name])
+        for i, j in enumerate(jobs):
+            step(0.5 + 0.5 * i / n)
+            ob = objs[j.name]
+            _warnings(ob, j, targets, report)
+            if baker is not None:
+                baker.wait(j)
+                _write_lightmap(ob, j, native, settings, tx, files, outputs[j.name], images)
+                baker.stored(j)
+            _record(ob, j, tx)
+            j.pixels = j.positions = j.uvs = j.corners = None     # the memory goes as soon as it is stored
+    finally:
+        if baker is not None:
+            baker.stop = True        # on a failure: what is still queued is not baked
+            baker.close()
     return outputs
 
 
@@ -598,7 +858,10 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             # files went).
             for d in reversed(missing):
                 tx.on_rollback(lambda d=d: os.path.isdir(d) and not os.listdir(d) and os.rmdir(d))
-        uv = prepare_uvs([bpy.data.objects[n] for n in object_names], scene, view_layer,
+        objs = {}
+        for o in bpy.data.objects:        # one walk; bpy.data.objects[name] walks them all for every name
+            objs.setdefault(o.name, o)
+        uv = prepare_uvs([objs[n] for n in object_names], scene, view_layer,
                          settings.get("uv_map"), tx)
         if bpy.context.scene == scene:
             dg = bpy.context.evaluated_depsgraph_get()
@@ -607,7 +870,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             dg = view_layer.depsgraph
         baked = []
         for name in object_names:
-            ob = bpy.data.objects[name]
+            ob = objs[name]
             if "LIGHTMAP" in settings["targets"] and not _uv_survives(ob, dg, uv[name][0]):
                 # One object's modifiers (geometry nodes, typically) dropping the UV map must not sink the
                 # whole bake: that object gets no lightmap and the report says why.
@@ -620,7 +883,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                     mesh.uv_layers.remove(mesh.uv_layers[uv[name][0]])
                 continue
             baked.append(name)
-        albedo_maps = _albedo_maps(scene, view_layer, baked, uv, settings, report)
+        albedo_maps = _albedo_maps(scene, view_layer, baked, uv, settings, report, objs)
         if albedo_maps:
             # The bake operator re-evaluated the scene; the depsgraph's evaluated objects are taken anew.
             if bpy.context.scene == scene:
@@ -628,12 +891,8 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             else:
                 view_layer.update()
                 dg = view_layer.depsgraph
-        for i, name in enumerate(baked):
-            if progress is not None:
-                progress("write-back", i / max(len(baked), 1))
-            ob = bpy.data.objects[name]
-            outputs[name] = write_object(ob, solution, native, dg, uv[name][0], uv[name][1], settings, tx,
-                                         report, files, reflects=name not in black, albedo=albedo_maps.get(name))
+        outputs.update(write_objects(objs, baked, solution, native, dg, uv, settings, tx, report, files, black=black,
+                                     albedo_maps=albedo_maps, progress=progress))
         if before_commit is not None:
             before_commit(baked, outputs)
         for tmp, path in files.items():
@@ -653,11 +912,11 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
     return outputs
 
 
-def _albedo_maps(scene, view_layer, names, uv, settings, report):
+def _albedo_maps(scene, view_layer, names, uv, settings, report, objs):
     """The per-texel albedo of the objects whose material colour varies (albedo.py), and a word in the report
     for every such object whose light is not followed texel by texel somewhere."""
     from . import albedo
-    textured = [n for n in names if albedo.needs_bake(bpy.data.objects[n])]
+    textured = [n for n in names if albedo.needs_bake(objs[n])]
     if not textured or settings.get("irradiance"):
         return {}
     jobs = {}
@@ -667,7 +926,7 @@ def _albedo_maps(scene, view_layer, names, uv, settings, report):
                                       f"surface (a texture), and the colour attribute holds the light with the "
                                       f"material's mean albedo; bake a lightmap to follow it per texel")
             continue
-        why = albedo.why_not(bpy.data.objects[n])
+        why = albedo.why_not(objs[n])
         if why:
             report["warnings"].append(f"object '{n}': albedo averaged: its material's colour varies across the "
                                       f"surface, but Cycles cannot bake it ({why}); the lightmap uses the "

@@ -222,6 +222,39 @@ Light parseLight(const py::handle& h) {
     return l;
 }
 
+// The arrays of one lightmap (bake_lightmap, bake_lightmaps), checked, kept alive while it bakes.
+struct LightmapArrays {
+    Array<float> p, u;
+    LightmapArrays(const py::handle& positions, const py::handle& uvs, const char* pname, const char* uname)
+        : p(checked<float>(positions, pname, {-1, 3, 3})), u(checked<float>(uvs, uname, {-1, 3, 2})) {
+        if (p.shape(0) != u.shape(0)) throw py::value_error("positions and uvs differ in length");
+        size_t t = size_t(p.shape(0));
+        const float* pp = p.data();
+        const float* up = u.data();
+        for (size_t i = 0; i < t * 9; ++i)
+            if (!std::isfinite(pp[i])) throw py::value_error("positions contain NaN or infinite values");
+        for (size_t i = 0; i < t * 6; ++i)
+            if (!std::isfinite(up[i])) throw py::value_error("uvs contain NaN or infinite values");
+    }
+    LightmapInput input(int width, int height, int margin, bool irradiance) const {
+        LightmapInput in;
+        in.positions = p.data();
+        in.uvs = u.data();
+        in.triangles = size_t(p.shape(0));
+        in.width = width;
+        in.height = height;
+        in.margin = margin;
+        in.irradiance = irradiance;
+        return in;
+    }
+};
+
+void checkLightmapSize(int width, int height, int margin) {
+    if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
+        throw py::value_error("width and height must be in [1, 16384]");
+    if (margin < 0) throw py::value_error("margin must be >= 0");
+}
+
 }  // namespace
 
 static py::exception<Cancelled>* cancelledType = nullptr;
@@ -309,24 +342,9 @@ void bindSolver(py::module_& m) {
         .def("bake_lightmap",
              [](const Solution& s, py::object positions, py::object uvs, int width, int height, int margin,
                 bool irradiance) {
-                 auto p = checked<float>(positions, "positions", {-1, 3, 3});
-                 auto u = checked<float>(uvs, "uvs", {-1, 3, 2});
-                 if (p.shape(0) != u.shape(0)) throw py::value_error("positions and uvs differ in length");
-                 if (width <= 0 || height <= 0 || width > 16384 || height > 16384)
-                     throw py::value_error("width and height must be in [1, 16384]");
-                 if (margin < 0) throw py::value_error("margin must be >= 0");
-                 LightmapInput in;
-                 in.positions = p.data();
-                 in.uvs = u.data();
-                 in.triangles = size_t(p.shape(0));
-                 for (size_t i = 0; i < in.triangles * 9; ++i)
-                     if (!std::isfinite(in.positions[i])) throw py::value_error("positions contain NaN or infinite values");
-                 for (size_t i = 0; i < in.triangles * 6; ++i)
-                     if (!std::isfinite(in.uvs[i])) throw py::value_error("uvs contain NaN or infinite values");
-                 in.width = width;
-                 in.height = height;
-                 in.margin = margin;
-                 in.irradiance = irradiance;
+                 LightmapArrays arrays(positions, uvs, "positions", "uvs");
+                 checkLightmapSize(width, height, margin);
+                 LightmapInput in = arrays.input(width, height, margin, irradiance);
                  std::vector<float> img;
                  {
                      py::gil_scoped_release nogil;
@@ -334,6 +352,43 @@ void bindSolver(py::module_& m) {
                  }
                  Array<float> result({py::ssize_t(height), py::ssize_t(width), py::ssize_t(4)});
                  std::copy(img.begin(), img.end(), result.mutable_data());
+                 return result;
+             },
+             py::arg("positions"), py::arg("uvs"), py::arg("width"), py::arg("height"), py::arg("margin") = 4,
+             py::arg("irradiance") = false)
+        .def("bake_lightmaps",
+             [](const Solution& s, py::sequence positions, py::sequence uvs, int width, int height, int margin,
+                py::object irradiance) {
+                 size_t count = size_t(py::len(positions));
+                 if (size_t(py::len(uvs)) != count) throw py::value_error("positions and uvs differ in length");
+                 checkLightmapSize(width, height, margin);
+                 std::vector<bool> irr(count, false);
+                 if (py::isinstance<py::bool_>(irradiance)) {
+                     irr.assign(count, irradiance.cast<bool>());
+                 } else {
+                     py::sequence seq = irradiance.cast<py::sequence>();
+                     if (size_t(py::len(seq)) != count)
+                         throw py::value_error("irradiance must be a bool or one bool per lightmap");
+                     for (size_t k = 0; k < count; ++k) {
+                         if (!py::isinstance<py::bool_>(seq[k])) throw py::value_error("irradiance must hold bools");
+                         irr[k] = seq[k].cast<bool>();
+                     }
+                 }
+                 std::vector<LightmapArrays> arrays;
+                 std::vector<LightmapInput> ins;
+                 arrays.reserve(count);
+                 for (size_t k = 0; k < count; ++k) {
+                     std::string i = "[" + std::to_string(k) + "]";
+                     arrays.emplace_back(positions[k], uvs[k], ("positions" + i).c_str(), ("uvs" + i).c_str());
+                     ins.push_back(arrays.back().input(width, height, margin, irr[k]));
+                     s.checkTexelBudget(ins.back());  // before the output is allocated
+                 }
+                 Array<float> result({py::ssize_t(count), py::ssize_t(height), py::ssize_t(width), py::ssize_t(4)});
+                 float* out = result.mutable_data();
+                 {
+                     py::gil_scoped_release nogil;
+                     s.bakeLightmaps(ins.data(), ins.size(), out);
+                 }
                  return result;
              },
              py::arg("positions"), py::arg("uvs"), py::arg("width"), py::arg("height"), py::arg("margin") = 4,
@@ -378,6 +433,24 @@ void bindSolver(py::module_& m) {
         py::arg("vertices"), py::arg("polygons"), py::arg("reflectance"), py::arg("emission"), py::arg("flags"),
         py::arg("object_index"), py::arg("object_names"), py::arg("settings") = py::dict(),
         py::arg("progress") = py::none(), py::arg("lights") = py::none());
+
+    m.def(
+        "uv_overlaps",
+        [](py::sequence uvs, int grid) {
+            if (grid <= 0 || grid > 4096) throw py::value_error("grid must be in [1, 4096]");
+            std::vector<Array<float>> arrays;
+            for (size_t k = 0; k < size_t(py::len(uvs)); ++k)
+                arrays.push_back(checked<float>(uvs[k], ("uvs[" + std::to_string(k) + "]").c_str(), {-1, 3, 2}));
+            Array<double> result({py::ssize_t(arrays.size())});
+            double* out = result.mutable_data();
+            {
+                py::gil_scoped_release nogil;
+                for (size_t k = 0; k < arrays.size(); ++k)
+                    out[k] = uvOverlap(arrays[k].data(), size_t(arrays[k].shape(0)), grid);
+            }
+            return result;
+        },
+        py::arg("uvs"), py::arg("grid") = 256);
 
     m.def(
         "write_exr",

@@ -234,13 +234,23 @@ std::vector<float> Solution::radiance(const float* points, const float* normals,
     return out;
 }
 
-std::vector<float> Solution::bakeLightmap(const LightmapInput& in) const {
-    if (in.width > 0 && in.height > 0 && size_t(in.width) * size_t(in.height) > maxTexels_)
+void Solution::checkTexelBudget(const LightmapInput& in) const {
+    const size_t maxTexels = maxTexels_;
+    if (in.width > 0 && in.height > 0 && size_t(in.width) * size_t(in.height) > maxTexels)
         throw BudgetExceeded("memory guard: a " + std::to_string(in.width) + " x " + std::to_string(in.height) +
-                             " lightmap is more than max_texels = " + std::to_string(maxTexels_) +
+                             " lightmap is more than max_texels = " + std::to_string(maxTexels) +
                              " texels (about 60 bytes each while baking); lower the resolution or raise "
                              "max_texels");
+}
+
+std::vector<float> Solution::bakeLightmap(const LightmapInput& in) const {
+    checkTexelBudget(in);
     return penumbra::bakeLightmap(field_, in, scene_->offset, threads_);
+}
+
+void Solution::bakeLightmaps(const LightmapInput* ins, size_t count, float* out) const {
+    for (size_t k = 0; k < count; ++k) checkTexelBudget(ins[k]);
+    penumbra::bakeLightmaps(field_, ins, count, scene_->offset, threads_, out);
 }
 
 }  // namespace penumbra

@@ -43,6 +43,11 @@ public:
     std::vector<float> radiance(const float* points, const float* normals, size_t n, bool irradiance = false) const;
     // Throws BudgetExceeded for images over Settings::maxTexels.
     std::vector<float> bakeLightmap(const LightmapInput& in) const;
+    // Several lightmaps at once over all the threads (bake/lightmap.h bakeLightmaps), into `out`; each is
+    // the same as bakeLightmap's. Throws BudgetExceeded as bakeLightmap does, for any one of them.
+    void bakeLightmaps(const LightmapInput* ins, size_t count, float* out) const;
+    // Throws the BudgetExceeded that bakeLightmap would for `in`.
+    void checkTexelBudget(const LightmapInput& in) const;
     const Scene& scene() const { return *scene_; }
     const Hierarchy& hierarchy() const { return *hierarchy_; }
     const std::vector<Link>& links() const { return links_; }

@@ -1,10 +1,11 @@
 #include "bake/lightmap.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <stdexcept>
-
-#include "util/parallel.h"
+#include <thread>
 
 namespace penumbra {
 namespace {
@@ -52,8 +53,14 @@ void closestBarycentric(double px, double py, const double* a, const double* b, 
 }  // namespace
 
 void dilate(std::vector<float>& rgba, std::vector<uint8_t>& covered, int W, int H, int passes) {
+    dilate(rgba.data(), covered.data(), W, H, passes);
+}
+
+void dilate(float* rgba, uint8_t* covered, int W, int H, int passes) {
+    const size_t texels = size_t(W) * size_t(H);
+    std::vector<uint8_t> next;
     for (int pass = 0; pass < passes; ++pass) {
-        std::vector<uint8_t> next = covered;
+        next.assign(covered, covered + texels);
         bool any = false;
         for (int y = 0; y < H; ++y)
             for (int x = 0; x < W; ++x) {
@@ -77,16 +84,16 @@ void dilate(std::vector<float>& rgba, std::vector<uint8_t>& covered, int W, int 
                     any = true;
                 }
             }
-        covered.swap(next);
+        std::copy(next.begin(), next.end(), covered);
         if (!any) break;
     }
 }
 
-std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput& in, const Vec3& offset,
-                                int threads) {
+namespace {
+
+// Each texel's nearest triangle point within reach of its centre (none: tri = -1).
+std::vector<Sample> rasterize(const LightmapInput& in) {
     const int W = in.width, H = in.height;
-    if (W <= 0 || H <= 0 || size_t(W) * size_t(H) > (size_t(1) << 28))
-        throw std::invalid_argument("lightmap size must be positive and at most 16384 x 16384");
     std::vector<Sample> samples(size_t(W) * H);
     const double reach2 = 0.5;  // a texel (half-diagonal 0.707) overlaps triangles closer than this
 
@@ -117,29 +124,170 @@ std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput&
                 if (d2 < s.dist2) s = Sample{d2, int(t), u, v, w};
             }
     }
+    return samples;
+}
 
-    std::vector<float> rgba(size_t(W) * H * 4, 0.0f);
-    std::vector<uint8_t> covered(size_t(W) * H, 0);
-    parallelFor(size_t(H), threads, 8, [&](size_t yb, size_t ye, int) {
-        for (size_t y = yb; y < ye; ++y)
-            for (int x = 0; x < W; ++x) {
-                size_t i = y * W + x;
-                const Sample& s = samples[i];
-                rgba[i * 4 + 3] = 1.0f;
-                if (s.tri < 0) continue;
-                const float* P = in.positions + size_t(s.tri) * 9;
-                Vec3 a{P[0], P[1], P[2]}, b{P[3], P[4], P[5]}, c{P[6], P[7], P[8]};
-                a -= offset; b -= offset; c -= offset;
-                Vec3 n = normalize(cross(b - a, c - a));
-                Vec3 p = a * s.b0 + b * s.b1 + c * s.b2;
-                Rgb r = field.radiance(p, n, in.irradiance);
-                rgba[i * 4] = float(r.x);
-                rgba[i * 4 + 1] = float(r.y);
-                rgba[i * 4 + 2] = float(r.z);
-                covered[i] = 1;
+// Rows [y0, y1) of one lightmap: the radiance of every covered texel, alpha 1 everywhere.
+void shadeRows(const RadianceField& field, const LightmapInput& in, const Vec3& offset, const Sample* samples,
+               size_t y0, size_t y1, float* rgba, uint8_t* covered) {
+    const int W = in.width;
+    auto corners = [&](int tri, Vec3& a, Vec3& b, Vec3& c) {
+        const float* P = in.positions + size_t(tri) * 9;
+        a = Vec3{P[0], P[1], P[2]};
+        b = Vec3{P[3], P[4], P[5]};
+        c = Vec3{P[6], P[7], P[8]};
+        a -= offset; b -= offset; c -= offset;
+    };
+    // The candidates of every texel of these rows, looked up once (RadianceField::Region): the rows' texels
+    // lie on their triangles, inside the box of those triangles' corners up to rounding, which the margin
+    // covers (a point outside the box walks the trees, with the same result).
+    Bounds box;
+    for (size_t i = y0 * W; i < y1 * W; ++i)
+        if (samples[i].tri >= 0) {
+            Vec3 a, b, c;
+            corners(samples[i].tri, a, b, c);
+            box.extend(a);
+            box.extend(b);
+            box.extend(c);
+        }
+    if (!box.empty()) {
+        double m = 1e-9 * (std::max({std::fabs(box.lo.x), std::fabs(box.lo.y), std::fabs(box.lo.z), std::fabs(box.hi.x),
+                                     std::fabs(box.hi.y), std::fabs(box.hi.z)}) + 1.0);
+        box.extend(box.lo - Vec3{m, m, m});
+        box.extend(box.hi + Vec3{m, m, m});
+    }
+    const RadianceField::Region region = field.region(box);
+    for (size_t y = y0; y < y1; ++y)
+        for (int x = 0; x < W; ++x) {
+            size_t i = y * W + x;
+            const Sample& s = samples[i];
+            rgba[i * 4 + 3] = 1.0f;
+            if (s.tri < 0) {
+                rgba[i * 4] = rgba[i * 4 + 1] = rgba[i * 4 + 2] = 0.0f;
+                continue;
             }
+            Vec3 a, b, c;
+            corners(s.tri, a, b, c);
+            Vec3 n = normalize(cross(b - a, c - a));
+            Vec3 p = a * s.b0 + b * s.b1 + c * s.b2;
+            Rgb r = field.radiance(p, n, in.irradiance, &region);
+            rgba[i * 4] = float(r.x);
+            rgba[i * 4 + 1] = float(r.y);
+            rgba[i * 4 + 2] = float(r.z);
+            covered[i] = 1;
+        }
+}
+
+// Work spread over threads by an atomic counter: items take very different times (a lightmap's rows
+// near a lamp, objects of different sizes). Which thread does an item changes no result.
+template <class F>
+void dynamicFor(size_t n, int threads, F&& body) {
+    threads = std::max(1, std::min(threads, int(std::min<size_t>(n, 1024))));
+    if (threads <= 1) {
+        for (size_t i = 0; i < n; ++i) body(i);
+        return;
+    }
+    std::atomic<size_t> next{0};
+    std::vector<std::exception_ptr> errors(static_cast<size_t>(threads));
+    auto work = [&](int t) {
+        try {
+            for (size_t i; (i = next.fetch_add(1)) < n;) body(i);
+        } catch (...) {
+            errors[size_t(t)] = std::current_exception();
+            next = n;
+        }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (auto& th : pool) th.join();
+    for (auto& e : errors)
+        if (e) std::rethrow_exception(e);
+}
+
+void checkSize(const LightmapInput& in) {
+    if (in.width <= 0 || in.height <= 0 || size_t(in.width) * size_t(in.height) > (size_t(1) << 28))
+        throw std::invalid_argument("lightmap size must be positive and at most 16384 x 16384");
+}
+
+}  // namespace
+
+void bakeLightmaps(const RadianceField& field, const LightmapInput* ins, size_t count, const Vec3& offset,
+                   int threads, float* out) {
+    std::vector<size_t> start(count + 1, 0);
+    for (size_t k = 0; k < count; ++k) {
+        checkSize(ins[k]);
+        start[k + 1] = start[k] + size_t(ins[k].width) * size_t(ins[k].height);
+    }
+    // 1. Every lightmap's texel-to-triangle map, one lightmap per task.
+    std::vector<std::vector<Sample>> samples(count);
+    dynamicFor(count, threads, [&](size_t k) { samples[k] = rasterize(ins[k]); });
+    // 2. The radiance of every covered texel, in blocks of rows of all the lightmaps together, so a batch
+    // of small lightmaps and a single large one keep every thread busy alike.
+    const size_t rows = 8;
+    std::vector<std::pair<size_t, size_t>> blocks;  // (lightmap, first row)
+    for (size_t k = 0; k < count; ++k)
+        for (size_t y = 0; y < size_t(ins[k].height); y += rows) blocks.emplace_back(k, y);
+    std::vector<uint8_t> covered(start[count], 0);
+    dynamicFor(blocks.size(), threads, [&](size_t b) {
+        auto [k, y] = blocks[b];
+        shadeRows(field, ins[k], offset, samples[k].data(), y, std::min(y + rows, size_t(ins[k].height)),
+                  out + start[k] * 4, covered.data() + start[k]);
     });
-    dilate(rgba, covered, W, H, in.margin);
+    samples.clear();
+    // 3. Texels outside every island filled from their neighbours, one lightmap per task.
+    dynamicFor(count, threads, [&](size_t k) {
+        const LightmapInput& in = ins[k];
+        dilate(out + start[k] * 4, covered.data() + start[k], in.width, in.height, in.margin);
+    });
+}
+
+double uvOverlap(const float* uvs, size_t triangles, int grid) {
+    if (grid <= 0) return 0.0;
+    std::vector<uint32_t> counts(size_t(grid) * size_t(grid), 0);
+    const double eps = 1e-6;
+    for (size_t tri = 0; tri < triangles; ++tri) {
+        double t[3][2];
+        bool finite = true;
+        for (int k = 0; k < 3; ++k)
+            for (int c = 0; c < 2; ++c) {
+                t[k][c] = double(uvs[tri * 6 + size_t(k) * 2 + size_t(c)]) * grid - 0.5;  // texel centre j at j
+                finite = finite && std::isfinite(t[k][c]);
+            }
+        if (!finite) continue;
+        const double* a = t[0];
+        const double* b = t[1];
+        const double* c = t[2];
+        double det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]);
+        if (!(std::fabs(det) > 1e-12)) continue;
+        int lo[2], hi[2];
+        for (int d = 0; d < 2; ++d) {
+            double mn = std::min({a[d], b[d], c[d]}), mx = std::max({a[d], b[d], c[d]});
+            lo[d] = int(std::clamp(std::ceil(mn), 0.0, double(grid - 1)));
+            hi[d] = int(std::clamp(std::floor(mx), -1.0, double(grid - 1)));
+        }
+        for (int py = lo[1]; py <= hi[1]; ++py)
+            for (int px = lo[0]; px <= hi[0]; ++px) {
+                double x = px, y = py;
+                double l1 = ((x - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (y - a[1])) / det;
+                double l2 = ((b[0] - a[0]) * (y - a[1]) - (x - a[0]) * (b[1] - a[1])) / det;
+                // Strictly inside, so a texel centre on an edge two neighbours share is not an overlap.
+                if (l1 > eps && l2 > eps && 1.0 - l1 - l2 > eps) ++counts[size_t(py) * size_t(grid) + size_t(px)];
+            }
+    }
+    size_t covered = 0, shared = 0;
+    for (uint32_t n : counts) {
+        covered += n > 0;
+        shared += n > 1;
+    }
+    return covered ? double(shared) / double(covered) : 0.0;
+}
+
+std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput& in, const Vec3& offset,
+                                int threads) {
+    checkSize(in);
+    std::vector<float> rgba(size_t(in.width) * in.height * 4, 0.0f);
+    bakeLightmaps(field, &in, 1, offset, threads, rgba.data());
     return rgba;
 }
 

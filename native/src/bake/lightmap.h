@@ -22,7 +22,20 @@ struct LightmapInput {
 std::vector<float> bakeLightmap(const RadianceField& field, const LightmapInput& in, const Vec3& offset,
                                 int threads);
 
+// Several lightmaps in one call, written one after another into `out` (each height x width x 4, as
+// bakeLightmap returns it; out holds the sum of their texels x 4 floats). The work is spread over `threads`
+// across all of them, so many small lightmaps use every thread; each lightmap is the same, bit for bit, as
+// bakeLightmap makes it alone.
+void bakeLightmaps(const RadianceField& field, const LightmapInput* ins, size_t count, const Vec3& offset,
+                   int threads, float* out);
+
+// Fraction of the covered texel centres of a grid x grid raster that lie strictly inside more than one UV
+// triangle (T x 3 x 2 UVs): islands that overlap share texels, so their faces all get one light. The
+// arithmetic is the add-on's numpy version's (writeback.uv_overlap), operation for operation.
+double uvOverlap(const float* uvs, size_t triangles, int grid);
+
 // Fills texels with coverage == 0 from covered neighbours, one ring per pass, `passes` times.
 void dilate(std::vector<float>& rgba, std::vector<uint8_t>& covered, int width, int height, int passes);
+void dilate(float* rgba, uint8_t* covered, int width, int height, int passes);
 
 }  // namespace penumbra

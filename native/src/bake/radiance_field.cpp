@@ -72,6 +72,8 @@ void RadianceField::init(const Hierarchy& h, const std::vector<Rgb>* textured, c
     double onPlane = 1e-5 * diagonal_ + float32Rounding(sc);
     std::vector<double> thickness = faceThickness(sc);
     polyTol_.assign(sc.polygons.size(), 0.0);
+    centroids_.resize(sc.polygons.size());
+    for (size_t i = 0; i < sc.polygons.size(); ++i) centroids_[i] = sc.polygons[i].geom.centroid();
     std::vector<Bounds> polyBoxes;
     for (size_t i = 0; i < sc.polygons.size(); ++i) {
         const ScenePolygon& p = sc.polygons[i];
@@ -171,11 +173,27 @@ bool RadianceField::acrossFold(const Leaf& l, const Vec3& d, double off, const V
     return std::fabs(off) <= sinTheta * length(d) + l.planeTol;
 }
 
-int RadianceField::locate(const Vec3& p, const Vec3& n) const {
+RadianceField::Region RadianceField::region(const Bounds& box) const {
+    // Scanning more candidates than this per point costs more than the walk down the tree.
+    const size_t maxScan = 128;
+    Region r;
+    r.box = box;
+    if (box.empty()) return r;
+    auto overlapsBox = [&](const Bounds& b) { return overlaps(b, box); };
+    supports_.query(overlapsBox, [&](int i) { r.leaves.push_back(i); });
+    polygonBoxes_.query(overlapsBox, [&](int i) { r.polygons.push_back(i); });
+    r.scanLeaves = r.leaves.size() <= maxScan;
+    r.scanPolygons = r.polygons.size() <= maxScan;
+    if (!r.scanLeaves) r.leaves = {};
+    if (!r.scanPolygons) r.polygons = {};
+    return r;
+}
+
+int RadianceField::locate(const Vec3& p, const Vec3& n, const Region* region) const {
     const Scene& sc = *scene_;
     int best = -1;
     double bestMiss = HUGE_VAL;
-    polygonBoxes_.query([&](const Bounds& b) { return contains(b, p); }, [&](int i) {
+    auto visit = [&](int i) {
         if (!contains(polygonBoxes_.box(i), p)) return;
         int q = located_[size_t(i)];
         const ScenePolygon& sp = sc.polygons[size_t(q)];
@@ -196,18 +214,30 @@ int RadianceField::locate(const Vec3& p, const Vec3& n) const {
             bestMiss = miss;
             best = q;
         }
-    });
+    };
+    // Every polygon whose box holds p overlaps the region's box when p is inside it, and is on its list in
+    // the tree's order.
+    if (region && region->scanPolygons && contains(region->box, p)) {
+        for (int i : region->polygons) visit(i);
+    } else {
+        polygonBoxes_.query([&](const Bounds& b) { return contains(b, p); }, visit);
+    }
     return best;
 }
 
 Rgb RadianceField::radiance(const Vec3& p, const Vec3& n, bool irradiance) const {
-    int poly = locate(p, n);
+    return radiance(p, n, irradiance, nullptr);
+}
+
+Rgb RadianceField::radiance(const Vec3& p, const Vec3& n, bool irradiance, const Region* region) const {
+    int poly = locate(p, n, region);
     int surface = poly >= 0 ? scene_->polygons[size_t(poly)].surface : -1;
     bool gather = direct_ && poly >= 0;
     int group = 0;
     Rgb detail = conv_.empty() ? Rgb{} : conv_.radiance(p, n, &group, irradiance);
     Rgb vis{1, 1, 1};
-    Rgb out = smooth(p, n, group, surface, gather, gather && !direct_->castsRays() ? &vis : nullptr, irradiance) +
+    Rgb out = smooth(p, n, group, surface, gather, gather && !direct_->castsRays() ? &vis : nullptr, irradiance,
+                     region) +
               detail;
     if (gather) {
         const ScenePolygon& sp = scene_->polygons[size_t(poly)];
@@ -217,7 +247,7 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n, bool irradiance) const
         // 1e-7 of the scene's size, a few float32 steps of a scene around the origin and the same
         // wherever the scene lies. 1e-5 moved a point 1.4 cm on a 1 km plane: 2 % of the light 1 m
         // from a lamp.
-        Vec3 toward = sp.geom.centroid() - p;
+        Vec3 toward = centroids_[size_t(poly)] - p;
         toward = toward - sp.normal * dot(toward, sp.normal);
         double len = length(toward), nudge = nudge_;
         Vec3 q = len > nudge ? p + toward * (nudge / len) : p;
@@ -229,7 +259,7 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n, bool irradiance) const
 }
 
 Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis,
-                          bool irradiance) const {
+                          bool irradiance, const Region* region) const {
     // A leaf's value is rho * E / pi with its own polygon's rho: dividing before the blend keeps a seam
     // between two materials of one surface from mixing one's albedo into the other's light.
     auto val = [&](const Leaf& l) {
@@ -239,7 +269,7 @@ Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, 
     Rgb sum, vsum;
     double wsum = 0;
     auto containsP = [&](const Bounds& b) { return contains(b, p); };
-    supports_.query(containsP, [&](int i) {
+    auto visit = [&](int i) {
         const Leaf& l = leaves_[i];
         if (l.group != group || (surface >= 0 && l.surface != surface) || !contains(l.support, p)) return;
         double w = weight(l, p, n);
@@ -248,7 +278,14 @@ Rgb RadianceField::smooth(const Vec3& p, const Vec3& n, int group, int surface, 
             vsum += l.vis * w;
             wsum += w;
         }
-    });
+    };
+    // A support that holds p lies in a tree node that holds p, which overlaps the region's box when p is
+    // inside it: the region's list has every such leaf, in the order of the walk (Region).
+    if (region && region->scanLeaves && contains(region->box, p)) {
+        for (int i : region->leaves) visit(i);
+    } else {
+        supports_.query(containsP, visit);
+    }
     if (wsum > 0) {
         if (vis) *vis = vsum / wsum;
         return sum / wsum;

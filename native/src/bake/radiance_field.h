@@ -40,6 +40,18 @@ public:
     // evaluates at the point (emitters and lamps) and loses its share of the indirect light.
     Rgb radiance(const Vec3& p, const Vec3& n, bool irradiance = false) const;
 
+    // The leaves and polygons whose boxes reach into `box` (a lightmap's triangles), in the order the trees
+    // visit them: radiance() at a point inside the box scans these lists instead of walking the trees, with
+    // the same candidates in the same order and so the same sums, bit for bit. A list longer than is worth
+    // scanning is left empty, and the trees are walked for it.
+    struct Region {
+        Bounds box;
+        std::vector<int> leaves, polygons;
+        bool scanLeaves = false, scanPolygons = false;
+    };
+    Region region(const Bounds& box) const;
+    Rgb radiance(const Vec3& p, const Vec3& n, bool irradiance, const Region* region) const;
+
 private:
     struct Leaf {
         Vec3 center, normal, e1, e2;  // e1, e2: half-axes of the element's parallelogram
@@ -59,9 +71,9 @@ private:
     // The blend of the leaves of one convolution group and (surface >= 0) one connected surface;
     // with `vis`, also the blend of their visibilities.
     Rgb smooth(const Vec3& p, const Vec3& n, int group, int surface, bool indirectOnly, Rgb* vis = nullptr,
-               bool irradiance = false) const;
+               bool irradiance = false, const Region* region = nullptr) const;
     // The receiving polygon p lies on (normal within 26 degrees of n), or -1.
-    int locate(const Vec3& p, const Vec3& n) const;
+    int locate(const Vec3& p, const Vec3& n, const Region* region = nullptr) const;
     double weight(const Leaf& l, const Vec3& p, const Vec3& n) const;
     bool acrossFold(const Leaf& l, const Vec3& d, double off, const Vec3& n) const;
 
@@ -72,6 +84,7 @@ private:
     std::vector<Leaf> leaves_;
     std::vector<int> located_;        // receiving polygons, in polygonBoxes_ order
     std::vector<double> polyTol_;     // per scene polygon: how far off its plane its own points can be
+    std::vector<Vec3> centroids_;     // per scene polygon: its geometry's centroid (radiance's nudge)
     BoxTree polygonBoxes_;
     BoxTree supports_;  // over leaves_[i].support
     double diagonal_ = 0;

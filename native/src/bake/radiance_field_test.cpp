@@ -200,3 +200,55 @@ TEST(RadianceField, AWarpedQuadIsSmoothOnTheOtherTriangulation) {
 
 }  // namespace
 }  // namespace penumbra
+
+namespace penumbra {
+namespace {
+
+// A lightmap's points read their candidates from a Region (the leaves and polygons near its triangles, in
+// the trees' order) instead of walking the trees: every value must be the walk's, bit for bit, inside the
+// region's box, at its faces, and outside it (where the walk is taken).
+TEST(RadianceField, ARegionGivesTheTreeWalksValuesBitForBit) {
+    TestScene t;
+    lamp(t, 1.0);
+    int floor = t.quad({0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, 0.5, 0.5}, {});
+    int wall = t.quad({0, 0, 0}, {0, 1, 0}, {0, 1, 1}, {0, 0, 1}, {0.5, 0.5, 0.5}, {});
+    int sheet = t.quad({0.2, 0.2, 0.3}, {0.8, 0.2, 0.3}, {0.8, 0.8, 0.3}, {0.2, 0.8, 0.3}, {0.5, 0.5, 0.5}, {});
+    Field s(t);
+    s.refine(floor, 3);
+    s.refine(wall, 2);
+    s.refine(sheet, 2);
+    s.set(floor, [](const Vec3& p) { return 1 + p.x + 2 * p.y; });
+    s.set(wall, [](const Vec3& p) { return 3 + p.z; });
+    s.set(sheet, [](const Vec3& p) { return 5 - p.x; });
+    RadianceField f = s.build();
+    const Vec3 off = s.scene.offset;
+    const Bounds boxes[] = {
+        {Vec3{0.1, 0.1, -0.01} - off, Vec3{0.4, 0.3, 0.01} - off},   // a patch of the floor
+        {Vec3{-0.01, 0.0, 0.0} - off, Vec3{0.3, 1.0, 1.0} - off},    // the wall and the floor's edge
+        {Vec3{0.0, 0.0, 0.0} - off, Vec3{1.0, 1.0, 1.0} - off},      // everything
+    };
+    int scanned = 0;
+    for (const Bounds& box : boxes) {
+        RadianceField::Region r = f.region(box);
+        scanned += r.scanLeaves;
+        for (int i = 0; i <= 24; ++i)
+            for (int j = 0; j <= 24; ++j) {
+                double x = i / 24.0, y = j / 24.0;
+                const Vec3 pts[][2] = {{{x, y, 0}, {0, 0, 1}}, {{0, x, y}, {1, 0, 0}}, {{x, y, 0.3}, {0, 0, 1}},
+                                       {{x, y, 0.3}, {0, 0, -1}}};
+                for (const auto& pn : pts) {
+                    Vec3 p = pn[0] - off, n = normalize(pn[1]);
+                    for (bool irr : {false, true}) {
+                        Rgb a = f.radiance(p, n, irr), b = f.radiance(p, n, irr, &r);
+                        EXPECT_EQ(a.x, b.x) << x << " " << y;
+                        EXPECT_EQ(a.y, b.y);
+                        EXPECT_EQ(a.z, b.z);
+                    }
+                }
+            }
+    }
+    EXPECT_GE(scanned, 1);
+}
+
+}  // namespace
+}  // namespace penumbra
