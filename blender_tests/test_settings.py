@@ -268,6 +268,9 @@ def test_shadow_texture_settings_reach_the_solver(empty_scene):
     s = empty_scene.penumbra
     s.resolution, s.color_attribute, s.quality = 16, False, "DRAFT"
     assert s.convolution                                          # on by default
+    # Whether the texture fits the default t_max hangs on the FFT cost timed at start-up, so on the machine's
+    # load (the contact tests failed that way while the ASan build ran beside them): not what is tested here.
+    s.t_max = 1e6
     assert bpy.ops.penumbra.bake() == {"FINISHED"}
     on = _last(empty_scene)
     assert on["convolution_links"] >= 1 and on["convolution_max_error"] <= s.e_max
