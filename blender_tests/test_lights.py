@@ -139,6 +139,18 @@ def test_cast_shadow_off_lets_light_through(empty_scene, penumbra):
     _compare(got, E, under)
 
 
+def _against_cycles_bake(scene, got):
+    """Cycles' DIFFUSE bake of the plane (256 spp) over the texels 5 cm inside its edges, where `got` (the
+    Penumbra texels of _bake_plane) was read: (Cycles texels, bias per channel, |relative difference| per texel)."""
+    from penumbra import compare
+    plane = bpy.data.objects["Plane"]
+    ref, _ = compare.cycles_lightmaps(scene, {"Plane": (plane["penumbra"]["uv_map"], RES, RES)}, samples=256)
+    mask, tpos = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
+    inner = mask & (np.abs(tpos[..., 0]) < HALF - 0.05) & (np.abs(tpos[..., 1]) < HALF - 0.05)
+    cyc = ref["Plane"][inner][:, :3]
+    return cyc, got.sum(axis=0) / cyc.sum(axis=0) - 1, np.abs(got / cyc - 1)
+
+
 def _sky_world(scene, elevation_deg=25.0):
     world = bpy.data.worlds.new("Sky")
     world.use_nodes = True
@@ -158,19 +170,12 @@ def test_sky_texture_world_against_cycles(empty_scene, penumbra):
     """A Sky Texture world (the default sky type of the running Blender, sun disc off) over an open plane: the
     world is rendered by Cycles into an equirectangular map (world_map), and the plane's bake is compared with
     Cycles' own DIFFUSE bake of it. Before world_map the world was skipped and the plane came out black."""
-    from penumbra import compare
     _scene(empty_scene)
     world, sky = _sky_world(empty_scene)
     report, got, _ = _bake_plane(penumbra, empty_scene)
     assert report["export"]["world"] == 1 and not report["skipped"] and not report["warnings"]
     assert any("evaluated by Cycles" in n for n in report["notes"])
-    plane = bpy.data.objects["Plane"]
-    ref, _ = compare.cycles_lightmaps(empty_scene, {"Plane": (plane["penumbra"]["uv_map"], RES, RES)}, samples=256)
-    mask, tpos = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
-    inner = mask & (np.abs(tpos[..., 0]) < HALF - 0.05) & (np.abs(tpos[..., 1]) < HALF - 0.05)
-    cyc = ref["Plane"][inner][:, :3]
-    bias = got.sum(axis=0) / cyc.sum(axis=0) - 1
-    rel = np.abs(got / cyc - 1)
+    cyc, bias, rel = _against_cycles_bake(empty_scene, got)
     print(f"sky '{sky.sky_type}' {bpy.app.version_string}: bias per channel {np.round(bias, 4)}, "
           f"mean |rel| {rel.mean():.4f}, p95 {np.quantile(rel, 0.95):.4f}; Cycles E/pi {cyc.mean(axis=0)}")
     assert cyc.min() > 0
@@ -184,7 +189,6 @@ def test_sky_texture_world_against_cycles(empty_scene, penumbra):
 def test_sky_sun_disc_becomes_a_sun_lamp_against_cycles(empty_scene, penumbra):
     """The same sky with its sun disc on (the Sky Texture's default): the disc is taken out of the map and sent as
     a SUN lamp (world_map.render_world_and_sun); the plane against Cycles' bake."""
-    from penumbra import compare
     _scene(empty_scene)
     world, sky = _sky_world(empty_scene, elevation_deg=35.0)
     if not hasattr(sky, "sun_disc"):
@@ -193,13 +197,7 @@ def test_sky_sun_disc_becomes_a_sun_lamp_against_cycles(empty_scene, penumbra):
     report, got, _ = _bake_plane(penumbra, empty_scene)
     assert sky.sun_disc                                   # put back after the render without it
     assert report["export"]["world"] == 1 and report["export"]["sun_lights"] == 1, report["export"]
-    plane = bpy.data.objects["Plane"]
-    ref, _ = compare.cycles_lightmaps(empty_scene, {"Plane": (plane["penumbra"]["uv_map"], RES, RES)}, samples=256)
-    mask, tpos = helpers.texel_world_positions(plane, plane["penumbra"]["uv_map"], RES, RES)
-    inner = mask & (np.abs(tpos[..., 0]) < HALF - 0.05) & (np.abs(tpos[..., 1]) < HALF - 0.05)
-    cyc = ref["Plane"][inner][:, :3]
-    bias = got.sum(axis=0) / cyc.sum(axis=0) - 1
-    rel = np.abs(got / cyc - 1)
+    cyc, bias, rel = _against_cycles_bake(empty_scene, got)
     print(f"sky with sun disc {bpy.app.version_string}: bias per channel {np.round(bias, 4)}, mean |rel| "
           f"{rel.mean():.4f}, p95 {np.quantile(rel, 0.95):.4f}; Cycles E/pi {cyc.mean(axis=0)}")
     assert np.abs(bias).max() < 0.01
