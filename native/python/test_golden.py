@@ -27,9 +27,10 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 # changes (light-weighted visibility, source-gradient splits), which alter the output by design. Issue 13 added
 # the counters "lights" and "light_rays" (0 here: the office has no analytic lights). Issue 14: reflectors' rays
 # at min_size receivers stop once their standard error is within the threshold (44.7M rays, was 68.0M).
+# Stop 22 added the counter "emitter_links" (element links whose source face emits: 8 % of the office's links).
 EXPECTED_COUNTS = {
     "polygons": 999, "elements": 38675, "leaves": 28916, "links": 1033270, "rays": 44714016, "shafts_clear": 22813,
-    "clusters": 291, "cluster_links": 53420, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
+    "clusters": 291, "cluster_links": 53420, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
     "convolution_max_error": 0.0,
     "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0},
     "gather_emitters": 4, "iterations": 30, "refine_passes": 3, "lights": 0, "light_rays": 0,
@@ -107,11 +108,10 @@ def test_office_matches_the_recorded_run():
         ref = want[name]
         assert got.shape == ref.shape, name
         scale = float(np.abs(ref).max())
-        # A lightmap texel may also move by up to 1e-4 of the peak: in Debian sid (Embree 4.4, newer glibc) 9 of
-        # 65536 texels differed by up to 3e-5 of the peak from this host's record, with every count equal.
-        tol = RTOL * np.maximum(np.abs(ref), 1e-3 * scale)
-        if name == "lightmap":
-            tol = np.maximum(tol, 1e-4 * scale)
+        # A value may also move by up to 1e-4 of the peak: in Debian sid (Embree 4.4, newer glibc) 9 of 65536
+        # lightmap texels differed by up to 3e-5 of the peak from the record, and on another AMD EPYC host 12 of
+        # 26865 radiance probes by 2e-5 of it, every count equal both times (a shadow ray grazing an edge).
+        tol = np.maximum(RTOL * np.maximum(np.abs(ref), 1e-3 * scale), 1e-4 * scale)
         bad = np.abs(got - ref) > tol
         assert not bad.any(), (f"{name}: {int(bad.sum())} of {bad.size} values moved, the largest by "
                                f"{float(np.abs(got - ref).max()):.3g} (peak {scale:.3g}); re-record if intended")

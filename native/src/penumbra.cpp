@@ -23,6 +23,7 @@ PENUMBRA_COUNTER(kLeaves, "leaves");
 PENUMBRA_COUNTER(kLinks, "links");
 PENUMBRA_COUNTER(kClusters, "clusters");                   // cluster nodes
 PENUMBRA_COUNTER(kClusterLinks, "cluster_links");          // links with a cluster at either end
+PENUMBRA_COUNTER(kEmitterLinks, "emitter_links");          // element links whose source face emits
 PENUMBRA_COUNTER(kConvolutionLinks, "convolution_links");
 PENUMBRA_COUNTER(kConvolutionTexels, "convolution_texels");  // of all their textures
 PENUMBRA_COUNTER(kGatherEmitters, "gather_emitters");  // emitting faces the final gather evaluates at every bake point
@@ -205,6 +206,10 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     counters.add(kClusters, h.clusters().size());
     counters.add(kClusterLinks, size_t(std::count_if(links.begin(), links.end(), [](const Link& l) {
         return isClusterNode(l.receiver) || isClusterNode(l.source);
+    })));
+    counters.add(kEmitterLinks, size_t(std::count_if(links.begin(), links.end(), [&](const Link& l) {
+        return !isClusterNode(l.receiver) && !isClusterNode(l.source) &&
+               maxComponent(scene.polygons[size_t(h[l.source].polygon)].emission) > 0;
     })));
     counters.add(kConvolutionLinks, conv.size());
     for (const ConvolutionLink& l : conv) {
