@@ -97,6 +97,13 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
     double minEdge = s.minSize * sc.diagonal;
     minArea_ = minEdge * minEdge;
     lift_ = 1e-5 * sc.diagonal;
+    if (!h.clusters().empty()) {
+        const ClusterTree& ct = h.clusters();
+        clusterEmits_.assign(ct.size(), 0);
+        for (size_t c = 0; c < ct.size(); ++c)
+            for (int k = ct[int(c)].begin; k < ct[int(c)].end && !clusterEmits_[c]; ++k)
+                clusterEmits_[c] = maxComponent(sc.polygons[size_t(ct.polygons()[size_t(k)])].emission) > 0;
+    }
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
     if (s.convolution) sites_ = std::make_unique<ConvolutionSites>(h, rays, s, counters);
 }
@@ -121,7 +128,17 @@ std::vector<ConvolutionLink> Refiner::convolutionLinks() const {
     return out;
 }
 
+bool Refiner::emits(int node) const {
+    return isClusterNode(node) ? clusterEmits_[size_t(clusterIndex(node))] != 0
+                               : maxComponent(h_.scene().polygons[h_[node].polygon].emission) > 0;
+}
+
 void Refiner::keep(const Link& l, std::vector<Link>& out) {
+    // A hidden transfer is kept only from a source that emits: the final gather measures visibility as
+    // the linked over the unoccluded light of the emitters, and the hidden ones count in the second.
+    // From a reflector it carries nothing anywhere (F V = 0 in the solve, no emission in the gather),
+    // and it was 18 % of the 5k office's links at epsilon 0.002 (553k cluster links alone).
+    if (l.V <= 0 && !emits(l.source)) return;
     if (linkCount_.fetch_add(1, std::memory_order_relaxed) >= settings_.maxLinks)
         throw BudgetExceeded("memory guard: the scene needs more than max_links = " +
                              std::to_string(settings_.maxLinks) +

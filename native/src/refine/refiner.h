@@ -76,6 +76,7 @@ private:
     // visible: about rho * Bdev * F * min(1, size / distance).
     double gradientError(const Link& l) const;
     void keep(const Link& l, std::vector<Link>& out);  // appends, within settings_.maxLinks
+    bool emits(int node) const;                        // some face of the node emits
     // Fig. 4: a significant transfer onto a large planar receiver through blockers becomes one
     // convolution link; true when it did.
     bool tryConvolution(int r, int s);
@@ -98,6 +99,7 @@ private:
         int numChildren;
     };
     std::vector<LightNode> lightNodes_;
+    std::vector<char> clusterEmits_;  // per cluster: some face below emits
     std::unique_ptr<ConvolutionSites> sites_;  // null with convolution off
     mutable std::mutex convMutex_;
     std::vector<ConvolutionLink> conv_;
