@@ -214,7 +214,7 @@ class Job:
             # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
             writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
                                 progress=step if progress is not None else None, before_commit=before_commit,
-                                black=self._black_objects())
+                                black=self._black_objects(), two_sided=self.exported.two_sided)
         for name, was in shown.items():
             ob = bpy.data.objects[name]
             if name in report.get("objects_baked", ()) and was != bool(s["irradiance"]):

@@ -16,7 +16,8 @@ from .materials import image_rgb, parse_material
 
 PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writeback, which needs bpy data)
 
-EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
+EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided); the solver gives such a
+                   # face a back twin that receives and reflects too, which is how two-sided objects are sent
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
 NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: point, spot and sun lamps shine through it
 
@@ -43,6 +44,7 @@ class Exported:
         self.object_names = []
         self.lights = []              # _native.solve's lights: point, spot, sun and the world
         self.bake_objects = []        # names of original mesh objects that get a lightmap / attribute
+        self.two_sided = set()        # of those, the ones lit on both sides (Object Properties > Two-sided)
         self.skipped = []             # {"name", "reason"}
         self.warnings = []
         self.notes = []
@@ -358,6 +360,15 @@ class render_visibility:
 NO_SURFACE_TYPES = ("CURVE", "SURFACE", "META", "FONT")
 
 
+def two_sided(ob):
+    """Object Properties > Penumbra > Two-sided. Reading ob.penumbra_settings creates the group on the object,
+    and a bake must not change objects: look first whether it is set (as __init__._opted_out does)."""
+    try:
+        return ob.is_property_set("penumbra_settings") and bool(ob.penumbra_settings.two_sided)
+    except (AttributeError, TypeError):
+        return False
+
+
 def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=None):
     res = Exported()
     verts, polys, refl, emit, flags, oidx = [], [], [], [], [], []
@@ -477,6 +488,11 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
                 rows = np.where(tri[:, None], rows[:, [2, 1, 0, 3]], rows[:, [3, 2, 1, 0]])
             radiance = rad_t[si]
             fl = np.where(radiance.max(axis=1) > 0, EMIT_BACK, 0).astype(np.uint8)
+            both = two_sided(owner)
+            if both:
+                # Cycles shades both sides of a face; the solver's back twin of each face receives and
+                # reflects there (and emits what the front emits, which Cycles' mesh emitters do too).
+                fl |= EMIT_BACK
             shadow, diffuse = compat.ray_visibility(ob_eval.original)
             if not shadow:
                 fl |= NO_LAMP_SHADOW
@@ -501,6 +517,8 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         else:
             mesh_owner[original.data.name_full] = original.name
             res.bake_objects.append(original.name)
+            if both:
+                res.two_sided.add(original.name)
 
     for name_full, ob in rendered.items():
         if name_full not in seen and ob.type in ("MESH", "LIGHT") + NO_SURFACE_TYPES:

@@ -239,6 +239,7 @@ class PENUMBRA_PT_object(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.prop(ob.penumbra_settings, "bake")
+        layout.prop(ob.penumbra_settings, "two_sided")
         state = baked_state(ob)
         if not state:
             layout.label(text="Not baked")

@@ -78,16 +78,25 @@ def _make_material(name, state, original):
     emit.inputs["Strength"].default_value = 1.0
     img = bpy.data.images.get(state.get("image", "")) if state.get("image") else None
     if img is not None:
-        uv = nt.nodes.new("ShaderNodeUVMap")
+        if state.get("uv_attribute"):
+            # An object whose modifiers copy faces: its lightmap UVs are a corner attribute of the modified
+            # surface (writeback.unwrap_copies), which a UV Map node cannot name in Blender 3.4.
+            uv = nt.nodes.new("ShaderNodeAttribute")
+            uv.attribute_type = "GEOMETRY"
+            uv.attribute_name = state["uv_attribute"]
+            uv_out = uv.outputs["Vector"]
+        else:
+            uv = nt.nodes.new("ShaderNodeUVMap")
+            # Without a UV Map node an Image Texture reads the render-active UV map, not the lightmap's.
+            uv.uv_map = state.get("uv_map", "")
+            uv_out = uv.outputs["UV"]
         uv.location = (-400, 0)
-        # Without a UV Map node an Image Texture reads the render-active UV map, not the lightmap's.
-        uv.uv_map = state.get("uv_map", "")
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.location = (-150, 0)
         tex.image = img
         tex.interpolation = "Linear"
         tex.extension = "EXTEND"
-        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        nt.links.new(uv_out, tex.inputs["Vector"])
         nt.links.new(tex.outputs["Color"], emit.inputs["Color"])
     else:
         attr = nt.nodes.new("ShaderNodeVertexColor")

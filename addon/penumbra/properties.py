@@ -137,6 +137,12 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
         name="Bake",
         description="Give this object a lightmap and color attribute. When off it still casts shadows and "
                     "bounces light onto the others, but keeps no baked light of its own", default=True)
+    two_sided: BoolProperty(
+        name="Two-sided",
+        description="Light both sides of every face, as Cycles renders them: for open surfaces (planes, "
+                    "cards, walls of one face) and flipped normals. Each face then receives and reflects "
+                    "light on its back too, and its lightmap holds the brighter of its two sides. Off: the "
+                    "side its normal points to only (half the faces to solve)", default=False)
 
 
 class PenumbraRuntime(bpy.types.PropertyGroup):
