@@ -168,12 +168,20 @@ def test_two_sided_object_gets_the_light_of_its_lit_side(empty_scene, penumbra):
 
 # ------------------------------------------------------------------------------------------- 4. UV overlap
 
-def _tile_row(count=4):
+def _tile_row(count=4, kind="ARRAY"):
     """A 2 m floor under its lamp, and a 0.2 m tile 0.3 m above it repeated `count` times 0.6 m apart along x
-    by an Array modifier: the copies sit at different distances from the lamp, so each gets its own light."""
+    by an Array modifier: the copies sit at different distances from the lamp, so each gets its own light.
+    kind="MIRROR": the tile touches its origin's YZ plane and a Mirror (merging, the default) welds its copy
+    to it there, 0.5 to 0.9 m from the lamp's axis."""
     floor = _lit_floor()
     tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=2,
                                material=helpers.diffuse_material("TileMat", (0.6,) * 3))
+    if kind == "MIRROR":
+        for v in tile.data.vertices:
+            v.co.x += 0.1
+        tile.location.x = 0.7
+        tile.modifiers.new("Mirror", "MIRROR")
+        return floor, tile
     tile.location.x = -0.6
     arr = tile.modifiers.new("Array", "ARRAY")
     arr.count = count
@@ -218,27 +226,29 @@ def _evaluated_lightmap_uvs(ob):
     return me, uv.astype(np.float64)
 
 
-def _copy_means(tile):
-    """Mean lightmap texel of each of the four copies (faces 4k..4k+3 of the evaluated mesh are copy k)."""
+def _copy_means(tile, copies=4):
+    """Mean lightmap texel of each copy (faces 4k..4k+3 of the evaluated mesh are copy k), and of each face."""
     me, uv = _evaluated_lightmap_uvs(tile)
     per_face = _face_means(me, uv, bpy.data.images[tile["penumbra"]["image"]])
     bpy.data.meshes.remove(me)
-    return per_face.reshape(4, 4).mean(axis=1), per_face
+    return per_face.reshape(copies, 4).mean(axis=1), per_face
 
 
 BAKE_COPIES = {"resolution": 64, "epsilon": 0.004}
 
 
-def test_array_copies_get_their_own_lightmap_texels(empty_scene, penumbra):
-    """Each Array copy is baked with the light it receives, as if the modifier were applied; what a render
-    reads (the preview, through the evaluated mesh's attribute) is that light."""
-    floor, tile = _tile_row()
+@pytest.mark.parametrize("kind,n,ratio", [("ARRAY", 4, 2.0), ("MIRROR", 2, 1.1)])
+def test_array_copies_get_their_own_lightmap_texels(empty_scene, penumbra, kind, n, ratio):
+    """Each Array or Mirror copy is baked with the light it receives, as if the modifier were applied; what a
+    render reads (the preview, through the evaluated mesh's attribute) is that light."""
+    floor, tile = _tile_row(kind=kind)
     report = penumbra.bake(empty_scene, **BAKE_COPIES)
     assert "Tile" in report["objects_baked"]
-    copies, faces = _copy_means(tile)
-    # Without their own texels the four copies read one copy's light (equal means); with them, the copy
-    # 1.2 m from the lamp's centre gets less than half of what the one under it gets.
-    assert copies.max() > 2 * copies.min(), copies
+    copies, faces = _copy_means(tile, n)
+    # Without their own texels the copies read one copy's light (equal means); with them, the Array's copy
+    # 1.2 m from the lamp's centre gets less than half of what the one under it gets, and the Mirror's
+    # copy nearer the lamp more than the other (measured 1.55x).
+    assert copies.max() > ratio * copies.min(), copies
     assert not [w for w in report["warnings"] if "shared" in w], report["warnings"]
     assert [n for n in report["notes"] if "'Tile'" in n and "Penumbra Lightmap UV" in n], report["notes"]
     # The modifier that gives the evaluated mesh its UVs comes last, after the Array.
@@ -247,13 +257,13 @@ def test_array_copies_get_their_own_lightmap_texels(empty_scene, penumbra):
     # The reference: the same scene with the Array applied (its four copies are faces of one mesh).
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    floor, tile = _tile_row()
+    floor, tile = _tile_row(kind=kind)
     me = bpy.data.meshes.new_from_object(tile.evaluated_get(bpy.context.evaluated_depsgraph_get()))
     tile.modifiers.clear()
     tile.data = me
     penumbra.bake(scene, **BAKE_COPIES)
-    ref, ref_faces = _copy_means(tile)
-    print(f"array copies: modifier {np.round(copies, 5)}, applied {np.round(ref, 5)}, worst face "
+    ref, ref_faces = _copy_means(tile, n)
+    print(f"{kind} copies: modifier {np.round(copies, 5)}, applied {np.round(ref, 5)}, worst face "
           f"{np.abs(faces - ref_faces).max() / ref_faces.max():.2e} of the brightest")
     # Same solve, same surface, so the light per copy agrees to the rasterisation of two UV layouts:
     # measured 0.0 % (the layouts are the same smart projection); 1 % of the brightest copy is allowed.
