@@ -343,6 +343,124 @@ def test_cancelled_bake_of_array_copies_changes_nothing(empty_scene, penumbra, s
     assert not bpy.data.node_groups and not [m for m in bpy.data.meshes if m.name.startswith("PenumbraUV_")]
 
 
+INSTANCE_X = {"A": -0.6, "B": 0.6, "C": 1.2}
+
+
+def _instanced_tiles(real=False):
+    """The floor and lamp, and a 0.2 m tile 0.3 m up in a collection that is not in the scene, instanced by
+    three empties at different distances from the lamp; real=True: three separate tiles there instead."""
+    _lit_floor()
+    mat = helpers.diffuse_material("TileMat", (0.6,) * 3)
+    if real:
+        for n, x in INSTANCE_X.items():
+            helpers.quad_object("Tile" + n, 0.1, 0.1, z=0.3, cuts=2, material=mat).location.x = x
+        return None
+    coll = bpy.data.collections.new("Prop")
+    tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=2, material=mat)
+    bpy.context.scene.collection.objects.unlink(tile)
+    coll.objects.link(tile)
+    for n, x in INSTANCE_X.items():
+        e = bpy.data.objects.new(n, None)
+        e.instance_type, e.instance_collection = "COLLECTION", coll
+        e.location.x = x
+        bpy.context.scene.collection.objects.link(e)
+    return tile
+
+
+def _instance_means(tile):
+    """Mean texel of each instance's tile in the object's lightmap, per face: {empty: (4,)}."""
+    me = tile.data
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers["PenumbraLightmap"].data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2).astype(np.float64)
+    img = bpy.data.images[tile["penumbra"]["image"]]
+    return {n: _face_means(me, uv * t[2] + np.array(t[:2]), img) for n, t in tile["penumbra"]["tiles"].items()}
+
+
+def test_collection_instances_get_their_own_lightmap_tiles(empty_scene, penumbra, tmp_path):
+    """With instance_lightmaps, each collection instance of an object gets a tile of the object's lightmap
+    with the light it receives, equal to three real copies' bakes; Cycles renders the preview of each
+    instance with its own tile. Without the setting the instances are reported as not baked."""
+    tile = _instanced_tiles()
+    report = penumbra.bake(empty_scene, **BAKE_COPIES)
+    assert "Tile" not in report["objects_baked"]
+    assert [x for x in report["skipped"] if x["name"].startswith("Tile") and "instance_lightmaps" in x["reason"]]
+    report = penumbra.bake(empty_scene, instance_lightmaps=True, **BAKE_COPIES)
+    assert report["objects_baked"] == ["Floor", "Tile"], report["objects_baked"]
+    assert sorted(tile["penumbra"]["tiles"]) == ["A", "B", "C"]
+    got = _instance_means(tile)
+    assert [bpy.data.objects[n]["penumbra_lightmap_tile"][:] == pytest.approx(tile["penumbra"]["tiles"][n])
+            for n in INSTANCE_X] == [True] * 3
+    means = np.array([got[n].mean() for n in INSTANCE_X])
+    # The instance 1.2 m out gets less than half of the light of the one 0.6 m in.
+    assert means.max() > 2 * means.min(), means
+
+    # The preview: an instance reads its empty's tile (Cycles' Instancer attribute).
+    assert penumbra.preview(empty_scene, True)
+    seen = _top_view(empty_scene, tmp_path, list(INSTANCE_X.values()))
+    print(f"instances: tiles {np.round(means, 5)}, preview render {np.round(seen, 5)}")
+    np.testing.assert_allclose(seen, means, rtol=0.03)
+    penumbra.preview(empty_scene, False)
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    _instanced_tiles(real=True)
+    penumbra.bake(scene, **BAKE_COPIES)
+    for n in INSTANCE_X:
+        ob = bpy.data.objects["Tile" + n]
+        me, uv = _evaluated_lightmap_uvs(ob)
+        ref = _face_means(me, uv, bpy.data.images[ob["penumbra"]["image"]])
+        bpy.data.meshes.remove(me)
+        print(f"instance {n}: tile {np.round(got[n], 5)}, real copy {np.round(ref, 5)}")
+        # Same solve and surface, another UV scale: per face within 2 % of the brightest face (measured
+        # below 0.5 %).
+        np.testing.assert_allclose(got[n], ref, rtol=0, atol=0.02 * ref.max())
+
+
+def _top_view(scene, tmp_path, xs_world, y_span=0.6):
+    """Mean pixel over the inner 0.16 m of a 0.2 m tile centred at each x of `xs_world`, in a 4-sample Cycles
+    render from above (orthographic, 2.4 m across centred on x = 0.3)."""
+    cam = bpy.data.cameras.new("Top")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 2.4
+    cam_ob = bpy.data.objects.new("Top", cam)
+    cam_ob.location = (0.3, 0.0, 2.0)
+    scene.collection.objects.link(cam_ob)
+    scene.camera = cam_ob
+    r = scene.render
+    r.engine = "CYCLES"
+    r.resolution_x, r.resolution_y, r.resolution_percentage = 96, 24, 100
+    scene.cycles.samples = 4
+    scene.cycles.use_denoising = False
+    r.filepath = str(tmp_path / "top.exr")
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(tmp_path / "top.exr"))
+    px = helpers.image_pixels(img)[..., :3].mean(axis=2)
+    bpy.data.images.remove(img)
+    xs = 0.3 + ((np.arange(96) + 0.5) / 96 - 0.5) * 2.4
+    ys = ((np.arange(24) + 0.5) / 24 - 0.5) * y_span
+    return np.array([float(px[(np.abs(xs - cx) < 0.08)[None, :] & (np.abs(ys) < 0.08)[:, None]].mean())
+                     for cx in xs_world])
+
+
+def test_cancelled_bake_of_instance_tiles_changes_nothing(empty_scene, penumbra):
+    _instanced_tiles()
+
+    def cancel(s, frac):
+        return s != "done"
+    before = helpers.blend_state()
+    with pytest.raises(penumbra.Cancelled):
+        penumbra.bake(empty_scene, progress=cancel, instance_lightmaps=True, **FAST)
+    helpers.assert_same_state(before, helpers.blend_state())
+    penumbra.bake(empty_scene, instance_lightmaps=True, **FAST)
+    assert bpy.data.objects["A"].get("penumbra_lightmap_tile") is not None
+    penumbra.clear(empty_scene)
+    assert [n for n in INSTANCE_X if bpy.data.objects[n].get("penumbra_lightmap_tile") is not None] == []
+    assert bpy.data.objects["Tile"].get("penumbra") is None
+
+
 def test_names_that_sanitise_alike_write_different_files(empty_scene, penumbra, tmp_path):
     _lit_floor()
     for name, y in (("Wall/1", 0.5), ("Wall_1", -0.5)):

@@ -97,6 +97,7 @@ class _Main:
             sub.prop(s, "uv_map")
         sub.prop(s, "output_dir")
         col.prop(s, "irradiance")
+        col.prop(s, "instance_lightmaps")
         col.separator()
         col.row().prop(s, "quality", expand=True)
 

@@ -30,6 +30,18 @@ OVERLAP_WARN = 0.02
 COPIES_PREFIX = "PenumbraUV_"
 COPIES_MODIFIER = "Penumbra Lightmap UV"
 COPIES_ATTRIBUTE = "PenumbraLightmapUV"
+# An object whose collection instances get lightmaps of their own (the instance_lightmaps setting) has one
+# lightmap with a tile per instance: each instancing empty (and the object itself, when it is rendered) holds
+# its tile as the custom property TILE_PROP = (u offset, v offset, scale), which the preview reads with an
+# Attribute node of type Instancer (an instance reads its empty's, the object itself its own).
+TILE_PROP = "penumbra_lightmap_tile"
+
+
+def instance_tiles(instancers, own):
+    """{instancer name (or "" for the object itself): (u offset, v offset, scale)} on a square grid."""
+    names = ([""] if own else []) + list(instancers)
+    g = max(1, math.ceil(math.sqrt(len(names))))
+    return {n: ((k % g) / g, (k // g) / g, 1.0 / g) for k, n in enumerate(names)}
 
 
 class WritebackError(RuntimeError):
@@ -157,8 +169,19 @@ def _call_op(idname, **props):
     return call(idname, None, props)
 
 
-def _unwrap(ob, scene, view_layer):
+def _unwrap(ob, scene, view_layer, stand_in=True):
     """Smart-project every face of `ob` into its active UV map (edit mode, with `ob` alone selected)."""
+    if stand_in and view_layer.objects.get(ob.name) is not ob:
+        # A collection member seen only through its instances is not in the view layer, where edit mode needs
+        # it: its mesh is unwrapped through a stand-in object linked to the scene meanwhile.
+        tmp = bpy.data.objects.new(ob.name + ".penumbra-unwrap", ob.data)
+        tmp.matrix_world = ob.matrix_world
+        scene.collection.objects.link(tmp)
+        try:
+            _unwrap(tmp, scene, view_layer, stand_in=False)
+        finally:
+            bpy.data.objects.remove(tmp)
+        return
     ob.select_set(True, view_layer=view_layer)
     view_layer.objects.active = ob
     try:
@@ -320,7 +343,7 @@ def unwrap_copies(ob, dg, scene, view_layer, tx):
         for o in view_layer.objects:
             if o.select_get(view_layer=view_layer):
                 o.select_set(False, view_layer=view_layer)
-        _unwrap(helper, scene, view_layer)
+        _unwrap(helper, scene, view_layer, stand_in=False)
     finally:
         scene.collection.objects.unlink(helper)
         sel.restore()
@@ -624,7 +647,7 @@ class _Job:
                  "two_sided")
 
 
-def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None):
+def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None, placements=None):
     """Everything the write-back needs of one object's evaluated mesh, from one evaluation of it; `copies`:
     the mesh whose UV map the lightmap of a modified surface uses (unwrap_copies)."""
     targets = settings["targets"]
@@ -636,10 +659,19 @@ def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None
     if "LIGHTMAP" in targets:
         # The preview reads the lightmap UVs from this attribute of the evaluated mesh, if any.
         job.record["uv_attribute"] = COPIES_ATTRIBUTE if copies is not None else ""
+        job.record["tiles"] = {}
+        job.record["own_tile"] = []
     job.front = job.front_rgb = job.positions = job.uvs = job.pixels = job.corners = job.corner_rgb = None
     job.uv_outside, job.shared, job.other_topology = False, 0.0, False
     ob_eval = ob.evaluated_get(dg)
     matrix = np.array(ob_eval.matrix_world, np.float64)
+    if placements:
+        # (own, [(instancer, matrix)]): the first placement stands for the object in the side check and the
+        # colour attribute, which all its instances share.
+        own, inst = placements
+        tiles = instance_tiles([n for n, _ in inst], own)
+        mats = ([("", matrix)] if own else []) + [(n, np.asarray(m, np.float64)) for n, m in inst]
+        matrix = mats[0][1]
     me = ob_eval.to_mesh()
     try:
         cache = _MeshCache(me, matrix)
@@ -650,6 +682,17 @@ def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None
             job.positions, job.uvs = _lightmap_inputs(me, ob_eval.name, uv_name, matrix, cache, copies)
             uvs = job.uvs
             job.uv_outside = bool(len(uvs) and (uvs.min() < -1e-4 or uvs.max() > 1 + 1e-4))
+            if placements:
+                pos, tiled = [], []
+                for n, m in mats:
+                    p, uv = (job.positions, uvs) if m is matrix else _lightmap_inputs(me, ob_eval.name, uv_name, m)
+                    ox, oy, s = tiles[n]
+                    pos.append(p)
+                    tiled.append(uv * np.float32(s) + np.array([ox, oy], np.float32))
+                job.positions = np.ascontiguousarray(np.concatenate(pos), np.float32)
+                job.uvs = np.ascontiguousarray(np.concatenate(tiled), np.float32)
+                job.record["tiles"] = {n: list(t) for n, t in tiles.items() if n}
+                job.record["own_tile"] = list(tiles[""]) if "" in tiles else []
         if "COLOR_ATTRIBUTE" in targets:
             base = ob.data
             if len(me.loops) == len(base.loops) and len(me.polygons) == len(base.polygons):
@@ -927,8 +970,31 @@ def _record(ob, job, tx):
     tx.on_commit(set_prop)
 
 
+def _tile_props(ob, job, tx):
+    """At the commit: each instancing empty (and the object, when rendered) gets its tile's TILE_PROP; the
+    empties an earlier bake gave one and this one does not lose it."""
+    ob_name, tiles, own, old = ob.name, job.record["tiles"], job.record["own_tile"], job.old.get("tiles", {})
+
+    def set_props():
+        objs = tx.index("objects")
+        for n in set(old) - set(tiles):
+            o = objs.get(n)
+            if o is not None and o.library is None:
+                o.pop(TILE_PROP, None)
+        for n, t in tiles.items():
+            objs[n][TILE_PROP] = t
+        o = objs[ob_name]
+        if own:
+            o[TILE_PROP] = own
+        else:
+            o.pop(TILE_PROP, None)
+    if tiles or old or ob.get(TILE_PROP) is not None:
+        tx.on_commit(set_props)
+
+
 def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, files, black=frozenset(),
-                  albedo_maps=None, progress=None, copies=None, two_sided=frozenset()):
+                  albedo_maps=None, progress=None, copies=None, two_sided=frozenset(), instances=None,
+                  instance_only=frozenset()):
     """Rasterise and store the objects' bakes; {name: outputs}. Nothing here replaces earlier results: that
     is the commit.
 
@@ -957,7 +1023,9 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
         for i, name in enumerate(names):
             step(0.3 * i / n)
             job = _gather(objs[name], dg, uv[name][0], uv[name][1], settings, reflects=name not in black,
-                          albedo=albedo_maps.get(name), copies=copies.get(name, (None,))[0])
+                          albedo=albedo_maps.get(name), copies=copies.get(name, (None,))[0],
+                          placements=(name not in instance_only, instances[name])
+                          if instances and name in instances else None)
             job.two_sided = name in two_sided
             if job.two_sided:
                 job.front = None         # both sides are lit: no side to warn about
@@ -992,6 +1060,8 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
                 _write_lightmap(ob, j, native, settings, tx, files, outputs[j.name], images)
                 baker.stored(j)
             _record(ob, j, tx)
+            if "LIGHTMAP" in targets:
+                _tile_props(ob, j, tx)
             j.pixels = j.positions = j.uvs = j.corners = None     # the memory goes as soon as it is stored
     finally:
         if baker is not None:
@@ -1034,16 +1104,17 @@ class _active_scene:
 
 
 def write_all(scene, view_layer, object_names, solution, native, settings, report, progress=None,
-              before_commit=None, black=(), two_sided=()):
+              before_commit=None, black=(), two_sided=(), instances=None, instance_only=()):
     """`black`: names of objects whose every face has albedo 0 (no side check for them). `two_sided`: names
     of objects lit on both sides; their lightmap and colours hold the brighter side, per texel and corner."""
     with _active_scene(scene, view_layer):
         return _write_all(scene, view_layer, object_names, solution, native, settings, report, progress,
-                          before_commit, frozenset(black), frozenset(two_sided))
+                          before_commit, frozenset(black), frozenset(two_sided), instances or {},
+                          frozenset(instance_only))
 
 
 def _write_all(scene, view_layer, object_names, solution, native, settings, report, progress, before_commit,
-               black, two_sided=frozenset()):
+               black, two_sided=frozenset(), instances=None, instance_only=frozenset()):
     """Unwrap, rasterise and store every baked object; all or nothing, on disk too: lightmap files are
     written under temporary names and moved into place only at the commit. `before_commit(outputs)` runs
     last before the commit; whatever it raises rolls everything back."""
@@ -1093,7 +1164,8 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             baked.append(name)
         copies = {}
         if "LIGHTMAP" in settings["targets"] and not settings.get("uv_map"):
-            for name in find_copies(objs, baked, dg, uv, native, settings["resolution"]):
+            for name in find_copies(objs, [n for n in baked if n not in (instances or {})], dg, uv, native,
+                                    settings["resolution"]):
                 copies[name] = unwrap_copies(objs[name], dg, scene, view_layer, tx)
                 report["notes"].append(
                     f"object '{name}': its modifiers copy faces onto the same lightmap UVs, so the lightmap uses "
@@ -1113,15 +1185,16 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             else:
                 view_layer.update()
                 dg = view_layer.depsgraph
-        albedo_maps = _albedo_maps(scene, view_layer, [n for n in baked if n not in copies], uv, settings, report,
-                                   objs)
-        for n in copies:
+        tiled = set(instances or {}) if "LIGHTMAP" in settings["targets"] else set()
+        albedo_maps = _albedo_maps(scene, view_layer, [n for n in baked if n not in copies and n not in tiled], uv,
+                                   settings, report, objs)
+        for n in list(copies) + [n for n in baked if n in tiled]:
             from . import albedo
             if albedo.needs_bake(objs[n]) and not settings.get("irradiance"):
                 report["warnings"].append(f"object '{n}': albedo averaged: its material's colour varies across the "
-                                          f"surface, but its lightmap UVs are made for its modified surface, "
-                                          f"which Cycles' albedo bake cannot use; the lightmap uses the "
-                                          f"material's mean albedo")
+                                          f"surface, but its lightmap is laid out for its modifier copies or "
+                                          f"its instances, which Cycles' albedo bake cannot follow; the lightmap "
+                                          f"uses the material's mean albedo")
         if albedo_maps:
             # The bake operator re-evaluated the scene; the depsgraph's evaluated objects are taken anew.
             if bpy.context.scene == scene:
@@ -1131,7 +1204,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                 dg = view_layer.depsgraph
         outputs.update(write_objects(objs, baked, solution, native, dg, uv, settings, tx, report, files, black=black,
                                      albedo_maps=albedo_maps, progress=progress, copies=copies,
-                                     two_sided=two_sided))
+                                     two_sided=two_sided, instances=instances, instance_only=instance_only))
         if before_commit is not None:
             before_commit(baked, outputs)
         for tmp, path in files.items():
@@ -1196,6 +1269,11 @@ def remove_bake(ob):
         me.attributes.remove(me.attributes[state["attribute"]])
     if state.get("uv_created") and state.get("uv_map") in me.uv_layers:
         me.uv_layers.remove(me.uv_layers[state["uv_map"]])
+    for n in state.get("tiles", {}):
+        o = bpy.data.objects.get(n)
+        if o is not None and o.library is None:
+            o.pop(TILE_PROP, None)
+    ob.pop(TILE_PROP, None)
     gone = []
     _drop_copies_modifiers(ob, gone.append)
     if gone:
