@@ -539,7 +539,9 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
 
         if own:
             own_surface.add(name)
-        elif is_inst and instance_lightmaps and owner.instance_type == "COLLECTION" and owner != original:
+        elif is_inst and instance_lightmaps and owner.instance_type == "COLLECTION" and owner != original \
+                and owner.library is None:
+            # (A linked empty cannot hold its tile's property, so its instances stay untiled and reported.)
             res.instances.setdefault(original.name, []).append((owner.name, matrix))
         elif is_inst:
             res.skip(name, "not baked: instance (its mesh data is shared; it takes part in the solve)"

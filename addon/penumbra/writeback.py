@@ -169,16 +169,17 @@ def _call_op(idname, **props):
     return call(idname, None, props)
 
 
-def _unwrap(ob, scene, view_layer, stand_in=True):
-    """Smart-project every face of `ob` into its active UV map (edit mode, with `ob` alone selected)."""
-    if stand_in and view_layer.objects.get(ob.name) is not ob:
+def _unwrap(ob, scene, view_layer, stand_in=False):
+    """Smart-project every face of `ob` into its active UV map (edit mode, with `ob` alone selected).
+    `stand_in`: `ob` is not in the view layer."""
+    if stand_in:
         # A collection member seen only through its instances is not in the view layer, where edit mode needs
         # it: its mesh is unwrapped through a stand-in object linked to the scene meanwhile.
         tmp = bpy.data.objects.new(ob.name + ".penumbra-unwrap", ob.data)
         tmp.matrix_world = ob.matrix_world
         scene.collection.objects.link(tmp)
         try:
-            _unwrap(tmp, scene, view_layer, stand_in=False)
+            _unwrap(tmp, scene, view_layer)
         finally:
             bpy.data.objects.remove(tmp)
         return
@@ -200,7 +201,7 @@ def _unwrap(ob, scene, view_layer, stand_in=True):
         ob.select_set(False, view_layer=view_layer)
 
 
-def _prepare_uv(ob, scene, view_layer, uv_setting, tx):
+def _prepare_uv(ob, scene, view_layer, uv_setting, tx, stand_in=False):
     me = ob.data
     if uv_setting:
         if uv_setting not in me.uv_layers:
@@ -240,7 +241,7 @@ def _prepare_uv(ob, scene, view_layer, uv_setting, tx):
     flags = _element_flags(me)
     attrs_before = compat.mesh_attribute_names(me)
     try:
-        _unwrap(ob, scene, view_layer)
+        _unwrap(ob, scene, view_layer, stand_in)
     finally:
         _restore_element_flags(me, flags)
         compat.drop_new_internal_attributes(me, attrs_before)
@@ -262,11 +263,14 @@ def prepare_uvs(objects, scene, view_layer, uv_setting, tx):
         return out
     sel = _SelectionState(view_layer)
     try:
+        in_layer = set()
         for o in view_layer.objects:
+            in_layer.add(o.name_full)
             if o.select_get(view_layer=view_layer):
                 o.select_set(False, view_layer=view_layer)
         for ob in objects:
-            out[ob.name] = _prepare_uv(ob, scene, view_layer, uv_setting, tx)
+            # An object baked for its collection instances only is in no collection of the view layer.
+            out[ob.name] = _prepare_uv(ob, scene, view_layer, uv_setting, tx, ob.name_full not in in_layer)
     finally:
         sel.restore()
     return out
@@ -343,7 +347,7 @@ def unwrap_copies(ob, dg, scene, view_layer, tx):
         for o in view_layer.objects:
             if o.select_get(view_layer=view_layer):
                 o.select_set(False, view_layer=view_layer)
-        _unwrap(helper, scene, view_layer, stand_in=False)
+        _unwrap(helper, scene, view_layer)
     finally:
         scene.collection.objects.unlink(helper)
         sel.restore()
