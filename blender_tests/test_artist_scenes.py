@@ -461,6 +461,31 @@ def test_cancelled_bake_of_instance_tiles_changes_nothing(empty_scene, penumbra)
     assert bpy.data.objects["Tile"].get("penumbra") is None
 
 
+def test_instances_of_a_linked_collection_are_reported_not_written(empty_scene, penumbra, tmp_path):
+    """A collection linked from a library and instanced by a local empty: with instance_lightmaps the bake
+    does not fail, nothing of the library changes, and the report says its instances were not baked."""
+    lib = str(tmp_path / "lib.blend")
+    _instanced_tiles()
+    bpy.data.collections["Prop"].use_fake_user = True
+    bpy.ops.wm.save_as_mainfile(filepath=lib)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    _lit_floor()
+    with bpy.data.libraries.load(lib, link=True) as (src, dst):
+        dst.collections = ["Prop"]
+    e = bpy.data.objects.new("LinkedProp", None)
+    e.instance_type, e.instance_collection = "COLLECTION", dst.collections[0]
+    scene.collection.objects.link(e)
+    before = helpers.blend_state()
+    report = penumbra.bake(scene, instance_lightmaps=True, **FAST)
+    assert report["objects_baked"] == ["Floor"]
+    reasons = [x["reason"] for x in report["skipped"] if x["name"].startswith("Tile")]
+    assert len(reasons) == 1 and "linked from a library" in reasons[0], report["skipped"]
+    after = helpers.blend_state()
+    assert after["meshes"]["Tile"] == before["meshes"]["Tile"]
+    assert e.get("penumbra_lightmap_tile") is None
+
+
 def test_names_that_sanitise_alike_write_different_files(empty_scene, penumbra, tmp_path):
     _lit_floor()
     for name, y in (("Wall/1", 0.5), ("Wall_1", -0.5)):
