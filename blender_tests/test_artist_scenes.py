@@ -336,6 +336,30 @@ def test_array_copies_preview_renders_each_copys_light(empty_scene, penumbra, tm
     assert [n for n in nt.nodes if n.type == "ATTRIBUTE" and n.attribute_name == "PenumbraLightmapUV"]
 
 
+def test_rebake_as_the_array_changes_keeps_modifier_and_preview_right(empty_scene, penumbra):
+    """The copies' UV layout follows the modifiers from bake to bake: none for one copy, made when the Array
+    copies, gone when the Array is removed; a preview left on switches between the UV map and the attribute."""
+    floor, tile = _tile_row()
+    arr = tile.modifiers["Array"]
+    arr.count = 1
+
+    def reads_attribute():
+        nt = tile.material_slots[0].material.node_tree
+        return bool([n for n in nt.nodes if n.type == "ATTRIBUTE" and n.attribute_name == "PenumbraLightmapUV"])
+    penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == ["Array"] and not tile["penumbra"]["uv_attribute"]
+    assert penumbra.preview(empty_scene, True) and not reads_attribute()
+    arr.count = 4
+    penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == ["Array", "Penumbra Lightmap UV"]
+    assert reads_attribute()
+    tile.modifiers.remove(arr)
+    report = penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == [] and not tile["penumbra"]["uv_attribute"]
+    assert not [o for o in bpy.data.objects if o.name.startswith("PenumbraUV_")] and not bpy.data.node_groups
+    assert not reads_attribute() and "Tile" in report["objects_baked"]
+
+
 @pytest.mark.parametrize("stage", ["write-back", "done"])
 def test_cancelled_bake_of_array_copies_changes_nothing(empty_scene, penumbra, stage):
     """The UV layout of modifier copies (a mesh, an object, a node group, a modifier) is made before the

@@ -203,9 +203,12 @@ class Job:
             report["times"]["total"] = time.perf_counter() - self._t_start
             step("done", 1.0)
 
-        # A preview built for the other kind of bake (irradiance or not) would show the new one wrongly.
-        shown = {n: bool(writeback.baked_state(objs[n]).get("irradiance"))
-                 for n in self.exported.bake_objects if objs[n].get(_preview.STATE) is not None}
+        # A preview built for another kind of bake (irradiance or not, the lightmap UVs read from the UV map,
+        # the modifier copies' attribute or instance tiles) would show the new one wrongly.
+        def kind(ob):
+            st = writeback.baked_state(ob)
+            return bool(st.get("irradiance")), st.get("uv_attribute", ""), bool(st.get("tiles"))
+        shown = {n: kind(objs[n]) for n in self.exported.bake_objects if objs[n].get(_preview.STATE) is not None}
         with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
             ws = dict(s)
@@ -218,7 +221,7 @@ class Job:
                                 instances=self.exported.instances, instance_only=self.exported.instance_only)
         for name, was in shown.items():
             ob = bpy.data.objects[name]
-            if name in report.get("objects_baked", ()) and was != bool(s["irradiance"]):
+            if name in report.get("objects_baked", ()) and was != kind(ob):
                 _preview.preview_off(ob)
                 _preview.preview_on(ob)
         return _jsonable(report)

@@ -291,7 +291,8 @@ def find_copies(objs, names, dg, uv, native, resolution):
     cand, tris = [], []
     for n in names:
         ob = objs[n]
-        if uv[n][0] != UV_NAME or not any(m.show_render and not _is_copies_modifier(m) for m in ob.modifiers):
+        # Any modifier: the mesh is measured as the bake's depsgraph evaluated it, whichever switch it heeded.
+        if uv[n][0] != UV_NAME or not any(not _is_copies_modifier(m) for m in ob.modifiers):
             continue
         ob_eval = ob.evaluated_get(dg)
         me = ob_eval.to_mesh()
