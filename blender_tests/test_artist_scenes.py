@@ -336,6 +336,24 @@ def test_array_copies_preview_renders_each_copys_light(empty_scene, penumbra, tm
     assert [n for n in nt.nodes if n.type == "ATTRIBUTE" and n.attribute_name == "PenumbraLightmapUV"]
 
 
+def test_array_copies_on_a_users_own_uv_map_are_warned(empty_scene, penumbra):
+    """With a UV map the user named (uv_map), the bake keeps it: the copies share its texels, and the report
+    says so with the share and the modifier; the floor, without overlap, is not warned about."""
+    floor = _lit_floor(cuts=1)
+    tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=1)
+    tile.location.x = -0.6
+    arr = tile.modifiers.new("Array", "ARRAY")
+    arr.count = 4
+    arr.relative_offset_displace = (3.0, 0, 0)
+    for ob in (floor, tile):
+        ob.data.uv_layers.new(name="Mine")          # each face fills the unit square
+    report = penumbra.bake(empty_scene, uv_map="Mine", **FAST)
+    tile_w = [w for w in report["warnings"] if "'Tile'" in w and "shared" in w]
+    assert len(tile_w) == 1 and "Array" in tile_w[0] and "100 %" in tile_w[0], report["warnings"]
+    assert not [w for w in report["warnings"] if "'Floor'" in w and "shared" in w]
+    assert [m.name for m in tile.modifiers] == ["Array"] and "Tile" in report["objects_baked"]
+
+
 def test_rebake_as_the_array_changes_keeps_modifier_and_preview_right(empty_scene, penumbra):
     """The copies' UV layout follows the modifiers from bake to bake: none for one copy, made when the Array
     copies, gone when the Array is removed; a preview left on switches between the UV map and the attribute."""
