@@ -140,7 +140,9 @@ def image_pixels(img):
 
 def blend_state():
     """Everything a bake or a preview may touch, in comparable form (bit-exact for arrays)."""
-    state = {"images": {}, "materials": {}, "meshes": {}, "objects": {}}
+    state = {"images": {}, "materials": {}, "meshes": {}, "objects": {}, "node_groups": {}}
+    for g in bpy.data.node_groups:
+        state["node_groups"][g.name] = g.users
     for img in bpy.data.images:
         w, h = img.size
         px = np.empty(w * h * img.channels, np.float32)
@@ -188,8 +190,12 @@ def blend_state():
             s.link = link
             slots.append((link, om, dm))
         props = {k: (ob[k].to_dict() if hasattr(ob[k], "to_dict") else ob[k]) for k in ob.keys()}
+        # The modifier stack, with each Geometry Nodes modifier's group (a bake may append one).
+        mods = [(m.name, m.type, m.node_group.name if m.type == "NODES" and m.node_group else None)
+                for m in ob.modifiers]
         state["objects"][ob.name] = {"slots": slots, "props": props, "selected": ob.select_get(),
-                                     "mode": ob.mode}
+                                     "mode": ob.mode, "modifiers": mods,
+                                     "data": ob.data.name if ob.data is not None else None}
     state["active"] = vl.objects.active.name if vl.objects.active else None
     return state
 

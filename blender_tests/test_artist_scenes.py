@@ -119,26 +119,436 @@ def test_face_lit_only_from_behind_is_reported(empty_scene, penumbra):
     assert helpers.image_pixels(bpy.data.images["Penumbra_Floor"])[..., :3].max() < 1e-6
 
 
+def _reverse_faces(ob):
+    """Flip every face of `ob` in place (winding and normal), keeping each corner's UV with its corner."""
+    import bmesh
+    bm = bmesh.new()
+    bm.from_mesh(ob.data)
+    bmesh.ops.reverse_faces(bm, faces=bm.faces[:])
+    bm.to_mesh(ob.data)
+    bm.free()
+
+
+def test_two_sided_object_gets_the_light_of_its_lit_side(empty_scene, penumbra):
+    """A floor with flipped normals under a lamp, Two-sided on: its lightmap holds the light on its top, the
+    side Cycles renders lit (Cycles' own DIFFUSE bake of it reads 0: it bakes the normal's side only). The
+    reference is Cycles' bake of the same floor facing the lamp, texel for texel in one UV map."""
+    from penumbra import compare
+    floor = _lit_floor(cuts=4)
+    penumbra.bake(empty_scene, **FAST)
+    uv = floor["penumbra"]["uv_map"]
+    res = FAST["resolution"]
+    ref, _ = compare.cycles_lightmaps(empty_scene, {"Floor": (uv, res, res)}, samples=256)
+    upright = helpers.image_pixels(bpy.data.images["Penumbra_Floor"])[..., :3].copy()
+    _reverse_faces(floor)
+    report = penumbra.bake(empty_scene, uv_map=uv, **FAST)
+    assert helpers.image_pixels(bpy.data.images["Penumbra_Floor"])[..., :3].max() < 1e-6  # one-sided: dark
+    assert [w for w in report["warnings"] if "'Floor'" in w and "Two-sided" in w], report["warnings"]
+    floor.penumbra_settings.two_sided = True
+    report = penumbra.bake(empty_scene, uv_map=uv, **FAST)
+    assert not [w for w in report["warnings"] if "front side" in w], report["warnings"]
+    got = helpers.image_pixels(bpy.data.images["Penumbra_Floor"])[..., :3]
+    mask, tpos = helpers.texel_world_positions(floor, uv, res, res)
+    inner = mask & (np.abs(tpos[..., 0]) < 0.95) & (np.abs(tpos[..., 1]) < 0.95)
+    # The flipped floor's two-sided bake is the upright floor's bake (the same solve seen from the other
+    # side; measured equal to 1e-6) ...
+    np.testing.assert_allclose(got[inner], upright[inner], rtol=1e-3, atol=1e-6)
+    # ... and Cycles' bake of the lit side: the same checks as the lights' tests (bias, 95th percentile).
+    cyc = ref["Floor"][inner][:, :3]
+    bias = got[inner].sum(axis=0) / cyc.sum(axis=0) - 1
+    rel = np.abs(got[inner] / cyc - 1)
+    print(f"two-sided floor vs Cycles: bias {np.round(bias, 4)}, p95 |rel| {np.quantile(rel, 0.95):.4f}")
+    assert np.abs(bias).max() < 0.02
+    assert np.quantile(rel, 0.95) < 0.05
+    # The colour attribute takes the brighter side too.
+    ca = np.empty(len(floor.data.loops) * 4, np.float32)
+    floor.data.color_attributes["Penumbra"].data.foreach_get("color", ca)
+    assert ca.reshape(-1, 4)[:, :3].mean() > 0.5 * got[inner].mean()
+
+
+def test_two_sided_flipped_floor_reflects_light_up(empty_scene, penumbra):
+    """Cycles reflects light off a face's back side too: a ceiling over a lamp that shines down gets the light
+    the floor reflects, whether the floor's normals point up or, when it is Two-sided, down. One-sided, the
+    flipped floor reflects nothing up."""
+    floor = _lit_floor(cuts=4)
+    ceiling = helpers.quad_object("Ceiling", 1.0, 1.0, z=1.5, flip=True, cuts=2,
+                                  material=helpers.diffuse_material("CeilingMat", (0.5,) * 3))
+    penumbra.bake(empty_scene, **FAST)
+    upright = _covered_mean(ceiling, "Penumbra_Ceiling")
+    assert upright > 0.01
+    _reverse_faces(floor)
+    penumbra.bake(empty_scene, **FAST)
+    one_sided = _covered_mean(ceiling, "Penumbra_Ceiling")
+    floor.penumbra_settings.two_sided = True
+    penumbra.bake(empty_scene, **FAST)
+    two_sided = _covered_mean(ceiling, "Penumbra_Ceiling")
+    print(f"ceiling over a flipped floor: one-sided {one_sided:.5f}, two-sided {two_sided:.5f}, upright {upright:.5f}")
+    assert one_sided < 0.01 * upright
+    # The same light by another path through the solver (the floor's back twins): measured 0.02 % apart.
+    assert two_sided == pytest.approx(upright, rel=0.02)
+
+
 # ------------------------------------------------------------------------------------------- 4. UV overlap
 
-def test_array_copies_sharing_lightmap_texels_are_warned(empty_scene, penumbra):
+def _tile_row(count=4, kind="ARRAY"):
+    """A 2 m floor under its lamp, and a 0.2 m tile 0.3 m above it repeated `count` times 0.6 m apart along x
+    by an Array modifier: the copies sit at different distances from the lamp, so each gets its own light.
+    kind="MIRROR": the tile touches its origin's YZ plane and a Mirror (merging, the default) welds its copy
+    to it there, 0.5 to 0.9 m from the lamp's axis."""
     floor = _lit_floor()
+    tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=2,
+                               material=helpers.diffuse_material("TileMat", (0.6,) * 3))
+    if kind == "MIRROR":
+        for v in tile.data.vertices:
+            v.co.x += 0.1
+        tile.location.x = 0.7
+        tile.modifiers.new("Mirror", "MIRROR")
+        return floor, tile
+    tile.location.x = -0.6
+    arr = tile.modifiers.new("Array", "ARRAY")
+    arr.count = count
+    arr.relative_offset_displace = (3.0, 0, 0)
+    return floor, tile
+
+
+def _face_means(me, uv, img):
+    """Mean lightmap texel over each face of `me` (texel centres strictly inside its UV triangles), from the
+    corner UVs `uv` (L, 2)."""
+    px = helpers.image_pixels(img)[..., :3].mean(axis=2)
+    h, w = px.shape
+    gx, gy = np.meshgrid((np.arange(w) + 0.5) / w, (np.arange(h) + 0.5) / h)
+    me.calc_loop_triangles()
+    sums, counts = np.zeros(len(me.polygons)), np.zeros(len(me.polygons))
+    for t in me.loop_triangles:
+        a, b, c = (uv[l] for l in t.loops)
+        det = (b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])
+        l1 = ((gx - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (gy - a[1])) / det
+        l2 = ((b[0] - a[0]) * (gy - a[1]) - (gx - a[0]) * (b[1] - a[1])) / det
+        inside = (l1 > 1e-6) & (l2 > 1e-6) & (1 - l1 - l2 > 1e-6)
+        sums[t.polygon_index] += px[inside].sum()
+        counts[t.polygon_index] += inside.sum()
+    assert counts.min() >= 4, counts
+    return sums / counts
+
+
+def _evaluated_lightmap_uvs(ob):
+    """The corner UVs a render of `ob` reads its lightmap with: the attribute a bake of modifier copies put on
+    the evaluated mesh, else the UV map PenumbraLightmap. Returns (evaluated mesh copy, uv (L, 2))."""
+    ob_eval = ob.evaluated_get(bpy.context.evaluated_depsgraph_get())
+    me = bpy.data.meshes.new_from_object(ob_eval)
+    name = ob.get("penumbra", {}).get("uv_attribute")
+    if name:
+        a = np.empty(len(me.loops) * 3, np.float32)
+        me.attributes[name].data.foreach_get("vector", a)
+        uv = a.reshape(-1, 3)[:, :2]
+    else:
+        uv = np.empty(len(me.loops) * 2, np.float32)
+        me.uv_layers["PenumbraLightmap"].data.foreach_get("uv", uv)
+        uv = uv.reshape(-1, 2)
+    return me, uv.astype(np.float64)
+
+
+def _copy_means(tile, copies=4):
+    """Mean lightmap texel of each copy (faces 4k..4k+3 of the evaluated mesh are copy k), and of each face."""
+    me, uv = _evaluated_lightmap_uvs(tile)
+    per_face = _face_means(me, uv, bpy.data.images[tile["penumbra"]["image"]])
+    bpy.data.meshes.remove(me)
+    return per_face.reshape(copies, 4).mean(axis=1), per_face
+
+
+BAKE_COPIES = {"resolution": 64, "epsilon": 0.004}
+
+
+@pytest.mark.parametrize("kind,n,ratio", [("ARRAY", 4, 2.0), ("MIRROR", 2, 1.1)])
+def test_array_copies_get_their_own_lightmap_texels(empty_scene, penumbra, kind, n, ratio):
+    """Each Array or Mirror copy is baked with the light it receives, as if the modifier were applied; what a
+    render reads (the preview, through the evaluated mesh's attribute) is that light."""
+    floor, tile = _tile_row(kind=kind)
+    report = penumbra.bake(empty_scene, **BAKE_COPIES)
+    assert "Tile" in report["objects_baked"]
+    copies, faces = _copy_means(tile, n)
+    # Without their own texels the copies read one copy's light (equal means); with them, the Array's copy
+    # 1.2 m from the lamp's centre gets less than half of what the one under it gets, and the Mirror's
+    # copy nearer the lamp more than the other (measured 1.55x).
+    assert copies.max() > ratio * copies.min(), copies
+    assert not [w for w in report["warnings"] if "shared" in w], report["warnings"]
+    assert [n for n in report["notes"] if "'Tile'" in n and "Penumbra Lightmap UV" in n], report["notes"]
+    # The modifier that gives the evaluated mesh its UVs comes last, after the Array.
+    assert tile.modifiers[-1].name == "Penumbra Lightmap UV"
+
+    # The reference: the same scene with the Array applied (its four copies are faces of one mesh).
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    floor, tile = _tile_row(kind=kind)
+    me = bpy.data.meshes.new_from_object(tile.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+    tile.modifiers.clear()
+    tile.data = me
+    penumbra.bake(scene, **BAKE_COPIES)
+    ref, ref_faces = _copy_means(tile, n)
+    print(f"{kind} copies: modifier {np.round(copies, 5)}, applied {np.round(ref, 5)}, worst face "
+          f"{np.abs(faces - ref_faces).max() / ref_faces.max():.2e} of the brightest")
+    # Same solve, same surface, so the light per copy agrees to the rasterisation of two UV layouts:
+    # measured 0.0 % (the layouts are the same smart projection); 1 % of the brightest copy is allowed.
+    np.testing.assert_allclose(copies, ref, rtol=0, atol=0.01 * ref.max())
+    np.testing.assert_allclose(faces, ref_faces, rtol=0, atol=0.02 * ref_faces.max())
+
+
+def test_array_copies_preview_renders_each_copys_light(empty_scene, penumbra, tmp_path):
+    """Cycles renders the preview of an Array object with each copy's own light: a top view's pixels over
+    each tile match that copy's texels."""
+    floor, tile = _tile_row()
+    penumbra.bake(empty_scene, **BAKE_COPIES)
+    copies, _ = _copy_means(tile)
+    assert penumbra.preview(empty_scene, True)
+    cam = bpy.data.cameras.new("Top")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 2.4
+    cam_ob = bpy.data.objects.new("Top", cam)
+    cam_ob.location = (0.3, 0.0, 2.0)
+    empty_scene.collection.objects.link(cam_ob)
+    empty_scene.camera = cam_ob
+    r = empty_scene.render
+    r.engine = "CYCLES"
+    r.resolution_x, r.resolution_y, r.resolution_percentage = 96, 24, 100
+    empty_scene.cycles.samples = 4
+    empty_scene.cycles.use_denoising = False
+    r.filepath = str(tmp_path / "top.exr")
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(tmp_path / "top.exr"))
+    px = helpers.image_pixels(img)[..., :3].mean(axis=2)         # (24, 96), row 0 at the bottom
+    # Pixel centres in world x, y: the camera spans 2.4 m in x and 0.6 m in y around (0.3, 0).
+    xs = 0.3 + ((np.arange(96) + 0.5) / 96 - 0.5) * 2.4
+    ys = ((np.arange(24) + 0.5) / 24 - 0.5) * 0.6
+    seen = []
+    for k in range(4):
+        cx = -0.6 + 0.6 * k
+        inner = (np.abs(xs - cx) < 0.08)[None, :] & (np.abs(ys) < 0.08)[:, None]
+        seen.append(float(px[inner].mean()))
+    seen = np.array(seen)
+    print(f"preview render over the copies {np.round(seen, 5)}, their texels {np.round(copies, 5)}")
+    # A render of an emission of the lightmap: its pixels over a tile are that tile's texels (the inner
+    # 80 %, without the tile's edges, which blend with the floor); measured within 0.5 % (4 samples), 3 % allowed.
+    np.testing.assert_allclose(seen, copies, rtol=0.03)
+    assert seen.max() > 2 * seen.min()
+    nt = tile.material_slots[0].material.node_tree
+    assert [n for n in nt.nodes if n.type == "ATTRIBUTE" and n.attribute_name == "PenumbraLightmapUV"]
+
+
+def test_array_copies_on_a_users_own_uv_map_are_warned(empty_scene, penumbra):
+    """With a UV map the user named (uv_map), the bake keeps it: the copies share its texels, and the report
+    says so with the share and the modifier; the floor, without overlap, is not warned about."""
+    floor = _lit_floor(cuts=1)
     tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=1)
     tile.location.x = -0.6
     arr = tile.modifiers.new("Array", "ARRAY")
     arr.count = 4
     arr.relative_offset_displace = (3.0, 0, 0)
-    report = penumbra.bake(empty_scene, **FAST)
+    for ob in (floor, tile):
+        ob.data.uv_layers.new(name="Mine")          # each face fills the unit square
+    report = penumbra.bake(empty_scene, uv_map="Mine", **FAST)
     tile_w = [w for w in report["warnings"] if "'Tile'" in w and "shared" in w]
     assert len(tile_w) == 1 and "Array" in tile_w[0] and "100 %" in tile_w[0], report["warnings"]
     assert not [w for w in report["warnings"] if "'Floor'" in w and "shared" in w]
-    # The attribute's warning no longer claims the lightmap is right for the copies.
-    topo = [w for w in report["warnings"] if "'Tile'" in w and "topology" in w]
-    assert len(topo) == 1 and "lightmap follows" not in topo[0]
-    assert "Tile" in report["objects_baked"] and floor.name in report["objects_baked"]
+    assert [m.name for m in tile.modifiers] == ["Array"] and "Tile" in report["objects_baked"]
 
 
-# ------------------------------------------------------------------------------------------- 5. names
+def test_rebake_as_the_array_changes_keeps_modifier_and_preview_right(empty_scene, penumbra):
+    """The copies' UV layout follows the modifiers from bake to bake: none for one copy, made when the Array
+    copies, gone when the Array is removed; a preview left on switches between the UV map and the attribute."""
+    floor, tile = _tile_row()
+    arr = tile.modifiers["Array"]
+    arr.count = 1
+
+    def reads_attribute():
+        nt = tile.material_slots[0].material.node_tree
+        return bool([n for n in nt.nodes if n.type == "ATTRIBUTE" and n.attribute_name == "PenumbraLightmapUV"])
+    penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == ["Array"] and not tile["penumbra"]["uv_attribute"]
+    assert penumbra.preview(empty_scene, True) and not reads_attribute()
+    arr.count = 4
+    penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == ["Array", "Penumbra Lightmap UV"]
+    assert reads_attribute()
+    tile.modifiers.remove(arr)
+    report = penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == [] and not tile["penumbra"]["uv_attribute"]
+    assert not [o for o in bpy.data.objects if o.name.startswith("PenumbraUV_")] and not bpy.data.node_groups
+    assert not reads_attribute() and "Tile" in report["objects_baked"]
+
+
+@pytest.mark.parametrize("stage", ["write-back", "done"])
+def test_cancelled_bake_of_array_copies_changes_nothing(empty_scene, penumbra, stage):
+    """The UV layout of modifier copies (a mesh, an object, a node group, a modifier) is made before the
+    commit: a cancel leaves none of it, on a first bake and on a re-bake after the Array changed."""
+    floor, tile = _tile_row()
+
+    def cancel(s, frac):
+        return s != stage
+    before = helpers.blend_state()
+    with pytest.raises(penumbra.Cancelled):
+        penumbra.bake(empty_scene, progress=cancel, **FAST)
+    helpers.assert_same_state(before, helpers.blend_state())
+    penumbra.bake(empty_scene, **FAST)
+    tile.modifiers["Array"].count = 3
+    before = helpers.blend_state()
+    with pytest.raises(penumbra.Cancelled):
+        penumbra.bake(empty_scene, progress=cancel, **FAST)
+    helpers.assert_same_state(before, helpers.blend_state())
+    # A re-bake replaces the earlier layout: one modifier, one helper, and clear() removes them all.
+    penumbra.bake(empty_scene, **FAST)
+    assert [m.name for m in tile.modifiers] == ["Array", "Penumbra Lightmap UV"]
+    assert [o.name for o in bpy.data.objects if o.name.startswith("PenumbraUV_")] == ["PenumbraUV_Tile"]
+    assert len(bpy.data.node_groups) == 1
+    penumbra.clear(empty_scene)
+    assert [m.name for m in tile.modifiers] == ["Array"]
+    assert not [o for o in bpy.data.objects if o.name.startswith("PenumbraUV_")]
+    assert not bpy.data.node_groups and not [m for m in bpy.data.meshes if m.name.startswith("PenumbraUV_")]
+
+
+INSTANCE_X = {"A": -0.6, "B": 0.6, "C": 1.2}
+
+
+def _instanced_tiles(real=False):
+    """The floor and lamp, and a 0.2 m tile 0.3 m up in a collection that is not in the scene, instanced by
+    three empties at different distances from the lamp; real=True: three separate tiles there instead."""
+    _lit_floor()
+    mat = helpers.diffuse_material("TileMat", (0.6,) * 3)
+    if real:
+        for n, x in INSTANCE_X.items():
+            helpers.quad_object("Tile" + n, 0.1, 0.1, z=0.3, cuts=2, material=mat).location.x = x
+        return None
+    coll = bpy.data.collections.new("Prop")
+    tile = helpers.quad_object("Tile", 0.1, 0.1, z=0.3, cuts=2, material=mat)
+    bpy.context.scene.collection.objects.unlink(tile)
+    coll.objects.link(tile)
+    for n, x in INSTANCE_X.items():
+        e = bpy.data.objects.new(n, None)
+        e.instance_type, e.instance_collection = "COLLECTION", coll
+        e.location.x = x
+        bpy.context.scene.collection.objects.link(e)
+    return tile
+
+
+def _instance_means(tile):
+    """Mean texel of each instance's tile in the object's lightmap, per face: {empty: (4,)}."""
+    me = tile.data
+    uv = np.empty(len(me.loops) * 2, np.float32)
+    me.uv_layers["PenumbraLightmap"].data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2).astype(np.float64)
+    img = bpy.data.images[tile["penumbra"]["image"]]
+    return {n: _face_means(me, uv * t[2] + np.array(t[:2]), img) for n, t in tile["penumbra"]["tiles"].items()}
+
+
+def test_collection_instances_get_their_own_lightmap_tiles(empty_scene, penumbra, tmp_path):
+    """With instance_lightmaps, each collection instance of an object gets a tile of the object's lightmap
+    with the light it receives, equal to three real copies' bakes; Cycles renders the preview of each
+    instance with its own tile. Without the setting the instances are reported as not baked."""
+    tile = _instanced_tiles()
+    report = penumbra.bake(empty_scene, **BAKE_COPIES)
+    assert "Tile" not in report["objects_baked"]
+    assert [x for x in report["skipped"] if x["name"].startswith("Tile") and "instance_lightmaps" in x["reason"]]
+    report = penumbra.bake(empty_scene, instance_lightmaps=True, **BAKE_COPIES)
+    assert report["objects_baked"] == ["Floor", "Tile"], report["objects_baked"]
+    assert sorted(tile["penumbra"]["tiles"]) == ["A", "B", "C"]
+    got = _instance_means(tile)
+    assert [bpy.data.objects[n]["penumbra_lightmap_tile"][:] == pytest.approx(tile["penumbra"]["tiles"][n])
+            for n in INSTANCE_X] == [True] * 3
+    means = np.array([got[n].mean() for n in INSTANCE_X])
+    # The instance 1.2 m out gets less than half of the light of the one 0.6 m in.
+    assert means.max() > 2 * means.min(), means
+
+    # The preview: an instance reads its empty's tile (Cycles' Instancer attribute).
+    assert penumbra.preview(empty_scene, True)
+    seen = _top_view(empty_scene, tmp_path, list(INSTANCE_X.values()))
+    print(f"instances: tiles {np.round(means, 5)}, preview render {np.round(seen, 5)}")
+    np.testing.assert_allclose(seen, means, rtol=0.03)
+    penumbra.preview(empty_scene, False)
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    _instanced_tiles(real=True)
+    penumbra.bake(scene, **BAKE_COPIES)
+    for n in INSTANCE_X:
+        ob = bpy.data.objects["Tile" + n]
+        me, uv = _evaluated_lightmap_uvs(ob)
+        ref = _face_means(me, uv, bpy.data.images[ob["penumbra"]["image"]])
+        bpy.data.meshes.remove(me)
+        print(f"instance {n}: tile {np.round(got[n], 5)}, real copy {np.round(ref, 5)}")
+        # Same solve and surface, another UV scale: per face within 2 % of the brightest face (measured
+        # below 0.5 %).
+        np.testing.assert_allclose(got[n], ref, rtol=0, atol=0.02 * ref.max())
+
+
+def _top_view(scene, tmp_path, xs_world, y_span=0.6):
+    """Mean pixel over the inner 0.16 m of a 0.2 m tile centred at each x of `xs_world`, in a 4-sample Cycles
+    render from above (orthographic, 2.4 m across centred on x = 0.3)."""
+    cam = bpy.data.cameras.new("Top")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 2.4
+    cam_ob = bpy.data.objects.new("Top", cam)
+    cam_ob.location = (0.3, 0.0, 2.0)
+    scene.collection.objects.link(cam_ob)
+    scene.camera = cam_ob
+    r = scene.render
+    r.engine = "CYCLES"
+    r.resolution_x, r.resolution_y, r.resolution_percentage = 96, 24, 100
+    scene.cycles.samples = 4
+    scene.cycles.use_denoising = False
+    r.filepath = str(tmp_path / "top.exr")
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(tmp_path / "top.exr"))
+    px = helpers.image_pixels(img)[..., :3].mean(axis=2)
+    bpy.data.images.remove(img)
+    xs = 0.3 + ((np.arange(96) + 0.5) / 96 - 0.5) * 2.4
+    ys = ((np.arange(24) + 0.5) / 24 - 0.5) * y_span
+    return np.array([float(px[(np.abs(xs - cx) < 0.08)[None, :] & (np.abs(ys) < 0.08)[:, None]].mean())
+                     for cx in xs_world])
+
+
+def test_cancelled_bake_of_instance_tiles_changes_nothing(empty_scene, penumbra):
+    _instanced_tiles()
+
+    def cancel(s, frac):
+        return s != "done"
+    before = helpers.blend_state()
+    with pytest.raises(penumbra.Cancelled):
+        penumbra.bake(empty_scene, progress=cancel, instance_lightmaps=True, **FAST)
+    helpers.assert_same_state(before, helpers.blend_state())
+    penumbra.bake(empty_scene, instance_lightmaps=True, **FAST)
+    assert bpy.data.objects["A"].get("penumbra_lightmap_tile") is not None
+    penumbra.clear(empty_scene)
+    assert [n for n in INSTANCE_X if bpy.data.objects[n].get("penumbra_lightmap_tile") is not None] == []
+    assert bpy.data.objects["Tile"].get("penumbra") is None
+
+
+def test_instances_of_a_linked_collection_are_reported_not_written(empty_scene, penumbra, tmp_path):
+    """A collection linked from a library and instanced by a local empty: with instance_lightmaps the bake
+    does not fail, nothing of the library changes, and the report says its instances were not baked."""
+    lib = str(tmp_path / "lib.blend")
+    _instanced_tiles()
+    bpy.data.collections["Prop"].use_fake_user = True
+    bpy.ops.wm.save_as_mainfile(filepath=lib)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    _lit_floor()
+    with bpy.data.libraries.load(lib, link=True) as (src, dst):
+        dst.collections = ["Prop"]
+    e = bpy.data.objects.new("LinkedProp", None)
+    e.instance_type, e.instance_collection = "COLLECTION", dst.collections[0]
+    scene.collection.objects.link(e)
+    before = helpers.blend_state()
+    report = penumbra.bake(scene, instance_lightmaps=True, **FAST)
+    assert report["objects_baked"] == ["Floor"]
+    reasons = [x["reason"] for x in report["skipped"] if x["name"].startswith("Tile")]
+    assert len(reasons) == 1 and "linked from a library" in reasons[0], report["skipped"]
+    after = helpers.blend_state()
+    assert after["meshes"]["Tile"] == before["meshes"]["Tile"]
+    assert e.get("penumbra_lightmap_tile") is None
+
 
 def test_names_that_sanitise_alike_write_different_files(empty_scene, penumbra, tmp_path):
     _lit_floor()

@@ -60,7 +60,7 @@ TARGETS = frozenset({"LIGHTMAP", "COLOR_ATTRIBUTE"})
 # while baking, 4 GB at this size); a larger resolution would only be refused after the whole solve.
 MAX_RESOLUTION = 8192
 DEFAULTS = {"resolution": 256, "margin": 4, "uv_map": None, "targets": TARGETS, "selection_only": False,
-            "output_dir": None, "irradiance": False}
+            "output_dir": None, "irradiance": False, "instance_lightmaps": False}
 
 
 class BakeError(RuntimeError):
@@ -77,7 +77,7 @@ def _settings(given):
     s["targets"] = frozenset(s["targets"] if not isinstance(s["targets"], str) else {s["targets"]})
     if not s["targets"] or not s["targets"] <= TARGETS:
         raise ValueError(f"targets must be a non-empty subset of {sorted(TARGETS)}, got {sorted(s['targets'])}")
-    for key in ("selection_only", "irradiance"):
+    for key in ("selection_only", "irradiance", "instance_lightmaps"):
         if not isinstance(s[key], bool):
             raise TypeError(f"{key} must be True or False, got {s[key]!r}")
     for key in ("uv_map", "output_dir"):
@@ -203,9 +203,12 @@ class Job:
             report["times"]["total"] = time.perf_counter() - self._t_start
             step("done", 1.0)
 
-        # A preview built for the other kind of bake (irradiance or not) would show the new one wrongly.
-        shown = {n: bool(writeback.baked_state(objs[n]).get("irradiance"))
-                 for n in self.exported.bake_objects if objs[n].get(_preview.STATE) is not None}
+        # A preview built for another kind of bake (irradiance or not, the lightmap UVs read from the UV map,
+        # the modifier copies' attribute or instance tiles) would show the new one wrongly.
+        def kind(ob):
+            st = writeback.baked_state(ob)
+            return bool(st.get("irradiance")), st.get("uv_attribute", ""), bool(st.get("tiles"))
+        shown = {n: kind(objs[n]) for n in self.exported.bake_objects if objs[n].get(_preview.STATE) is not None}
         with _object_mode(scene, vl), export.render_visibility(scene, vl):
             step("write-back", 0.0)
             ws = dict(s)
@@ -214,10 +217,11 @@ class Job:
             # `step` raises Cancelled when progress says stop, and the write-back then rolls back.
             writeback.write_all(scene, vl, self.exported.bake_objects, self.solution, _native, ws, report,
                                 progress=step if progress is not None else None, before_commit=before_commit,
-                                black=self._black_objects())
+                                black=self._black_objects(), two_sided=self.exported.two_sided,
+                                instances=self.exported.instances, instance_only=self.exported.instance_only)
         for name, was in shown.items():
             ob = bpy.data.objects[name]
-            if name in report.get("objects_baked", ()) and was != bool(s["irradiance"]):
+            if name in report.get("objects_baked", ()) and was != kind(ob):
                 _preview.preview_off(ob)
                 _preview.preview_on(ob)
         return _jsonable(report)
@@ -294,7 +298,8 @@ def begin(scene=None, progress=None, **settings):
     with _object_mode(scene, vl), export.render_visibility(scene, vl):
         step("export", 0.0)
         t = time.perf_counter()
-        ex = export.export_scene(scene, vl, _depsgraph(scene, vl), s["selection_only"])
+        ex = export.export_scene(scene, vl, _depsgraph(scene, vl), s["selection_only"],
+                                 instance_lightmaps=s["instance_lightmaps"])
         report["times"]["export"] = time.perf_counter() - t
         # Opted-out objects still cast and reflect light; they only get no lightmap or attribute.
         for name in [n for n in ex.bake_objects if _opted_out(bpy.data.objects[n])]:
@@ -403,7 +408,8 @@ def clear(scene):
     """Remove what bakes made in this scene (preview materials, images, attributes, created UV maps), and
     Penumbra's own images that no object's bake refers to any more (their object was deleted)."""
     _preview.set_preview(scene, False)
-    cleared = [ob.name for ob in scene.objects if ob.type == "MESH" and writeback.remove_bake(ob)]
+    cleared = [ob.name for ob in list(scene.objects) + _preview.instanced_only(scene)
+               if ob.type == "MESH" and writeback.remove_bake(ob)]
     writeback.remove_orphan_images()
     return cleared
 

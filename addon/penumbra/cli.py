@@ -101,6 +101,9 @@ def parser():
     ap.add_argument("--irradiance", action=argparse.BooleanOptionalAction, default=None,
                     help="bake the arriving light without the albedo (Cycles' Diffuse Direct + Indirect without "
                          "Color), for engines that multiply by their own albedo (the panel's Irradiance Only)")
+    ap.add_argument("--instance-lightmaps", dest="instance_lightmaps", action=argparse.BooleanOptionalAction,
+                    default=None, help="give every collection instance of an object a tile of its own in the "
+                                       "object's lightmap (the panel's Instance Lightmaps)")
     # One flag per panel setting of the solver, from settings_table (--visibility-rays N, --no-clustering, ...).
     for s in settings_table.PANEL:
         if s.type is bool:
@@ -121,7 +124,8 @@ def settings_from(panel, args):
     s = dict(panel.as_settings()) if panel is not None else {}
     if args.quality:
         s.update(settings_table.PRESETS[args.quality.upper()])
-    for key in ("resolution", "margin", "uv_map", "selection_only", "irradiance") + settings_table.SOLVER_KEYS:
+    for key in ("resolution", "margin", "uv_map", "selection_only", "irradiance",
+                "instance_lightmaps") + settings_table.SOLVER_KEYS:
         v = getattr(args, key)
         if v is not None:
             s[key] = v

@@ -164,3 +164,25 @@ def sync_layer_collections(view_layer):
         return lc is None or any(stale(c) for c in lc.children)
     if stale(view_layer.layer_collection):
         view_layer.update()
+
+
+def geometry_group_sockets(ng):
+    """Give a new Geometry Nodes group one Geometry input and one Geometry output, so a modifier can use it:
+    3.x has NodeTree.inputs/outputs, 4.0 moved them to NodeTree.interface (and marks modifier groups)."""
+    if hasattr(ng, "interface"):
+        ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+        ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+        if hasattr(ng, "is_modifier"):
+            ng.is_modifier = True
+    else:
+        ng.inputs.new("NodeSocketGeometry", "Geometry")
+        ng.outputs.new("NodeSocketGeometry", "Geometry")
+
+
+def shown_socket(sockets, name):
+    """The socket called `name` that the node's data type shows: 3.x nodes keep one socket per type under the
+    same name and hide the others (`enabled`); newer ones have a single socket that changes type."""
+    for s in sockets:
+        if s.name == name and getattr(s, "enabled", True):
+            return s
+    raise KeyError(name)

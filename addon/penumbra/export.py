@@ -16,7 +16,8 @@ from .materials import image_rgb, parse_material
 
 PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writeback, which needs bpy data)
 
-EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided)
+EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided); the solver gives such a
+                   # face a back twin that receives and reflects too, which is how two-sided objects are sent
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
 NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: point, spot and sun lamps shine through it
 
@@ -43,6 +44,11 @@ class Exported:
         self.object_names = []
         self.lights = []              # _native.solve's lights: point, spot, sun and the world
         self.bake_objects = []        # names of original mesh objects that get a lightmap / attribute
+        self.two_sided = set()        # of those, the ones lit on both sides (Object Properties > Two-sided)
+        # With instance_lightmaps: object name -> [(instancing empty's name, world matrix (4, 4))], each
+        # collection instance of the object, which gets a tile of its own in the object's lightmap.
+        self.instances = {}
+        self.instance_only = set()    # objects baked only through their instances (not rendered themselves)
         self.skipped = []             # {"name", "reason"}
         self.warnings = []
         self.notes = []
@@ -358,7 +364,44 @@ class render_visibility:
 NO_SURFACE_TYPES = ("CURVE", "SURFACE", "META", "FONT")
 
 
-def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=None):
+def _instance_bakes(res, mesh_owner):
+    """Which instanced objects get a lightmap with a tile per collection instance: each object once (its own
+    placement, if rendered, is tile 0), unless its mesh is linked, shared with another baked object, or one
+    empty instances it twice (nested collections)."""
+    for name, placements in list(res.instances.items()):
+        ob = bpy.data.objects[name]
+        owners = [p[0] for p in placements]
+        why = None
+        if ob.data.library is not None or getattr(ob.data, "override_library", None):
+            why = "the mesh is linked from a library"
+        elif len(set(owners)) != len(owners):
+            why = "an empty instances it more than once (nested collections)"
+        elif name not in res.bake_objects and ob.data.name_full in mesh_owner:
+            why = f"it shares its mesh with '{mesh_owner[ob.data.name_full]}'"
+        if why:
+            del res.instances[name]
+            res.skip(f"{name} (instances)", f"not baked: instance; {why} (its instances take part in the solve)")
+            continue
+        if name not in res.bake_objects:
+            mesh_owner[ob.data.name_full] = name
+            res.bake_objects.append(name)
+            res.instance_only.add(name)
+            if two_sided(ob):
+                res.two_sided.add(name)
+        res.notes.append(f"object '{name}': its {len(placements)} collection instance(s) ({', '.join(owners)}) "
+                         f"get tiles of their own in its lightmap")
+
+
+def two_sided(ob):
+    """Object Properties > Penumbra > Two-sided. Reading ob.penumbra_settings creates the group on the object,
+    and a bake must not change objects: look first whether it is set (as __init__._opted_out does)."""
+    try:
+        return ob.is_property_set("penumbra_settings") and bool(ob.penumbra_settings.two_sided)
+    except (AttributeError, TypeError):
+        return False
+
+
+def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=None, instance_lightmaps=False):
     res = Exported()
     verts, polys, refl, emit, flags, oidx = [], [], [], [], [], []
     base = 0
@@ -477,6 +520,11 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
                 rows = np.where(tri[:, None], rows[:, [2, 1, 0, 3]], rows[:, [3, 2, 1, 0]])
             radiance = rad_t[si]
             fl = np.where(radiance.max(axis=1) > 0, EMIT_BACK, 0).astype(np.uint8)
+            both = two_sided(original)
+            if both:
+                # Cycles shades both sides of a face; the solver's back twin of each face receives and
+                # reflects there (and emits what the front emits, which Cycles' mesh emitters do too).
+                fl |= EMIT_BACK
             shadow, diffuse = compat.ray_visibility(ob_eval.original)
             if not shadow:
                 fl |= NO_LAMP_SHADOW
@@ -491,8 +539,14 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
 
         if own:
             own_surface.add(name)
+        elif is_inst and instance_lightmaps and owner.instance_type == "COLLECTION" and owner != original \
+                and owner.library is None:
+            # (A linked empty cannot hold its tile's property, so its instances stay untiled and reported.)
+            res.instances.setdefault(original.name, []).append((owner.name, matrix))
         elif is_inst:
-            res.skip(name, "not baked: instance (its mesh data is shared; it takes part in the solve)")
+            res.skip(name, "not baked: instance (its mesh data is shared; it takes part in the solve)"
+                     + ("" if owner.instance_type != "COLLECTION" else
+                        "; the instance_lightmaps setting gives collection instances tiles of their own"))
         elif original.data.library is not None or getattr(original.data, "override_library", None):
             res.skip(name, "not baked: the mesh is linked from a library (it takes part in the solve)")
         elif original.data.name_full in mesh_owner:
@@ -501,7 +555,10 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
         else:
             mesh_owner[original.data.name_full] = original.name
             res.bake_objects.append(original.name)
+            if both:
+                res.two_sided.add(original.name)
 
+    _instance_bakes(res, mesh_owner)
     for name_full, ob in rendered.items():
         if name_full not in seen and ob.type in ("MESH", "LIGHT") + NO_SURFACE_TYPES:
             # render_visibility could not show it (linked, read-only flags), so the depsgraph left it out.

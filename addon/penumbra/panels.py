@@ -97,6 +97,7 @@ class _Main:
             sub.prop(s, "uv_map")
         sub.prop(s, "output_dir")
         col.prop(s, "irradiance")
+        col.prop(s, "instance_lightmaps")
         col.separator()
         col.row().prop(s, "quality", expand=True)
 
@@ -239,6 +240,7 @@ class PENUMBRA_PT_object(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         layout.prop(ob.penumbra_settings, "bake")
+        layout.prop(ob.penumbra_settings, "two_sided")
         state = baked_state(ob)
         if not state:
             layout.label(text="Not baked")

@@ -9,7 +9,7 @@ import bpy
 
 from . import compat
 from .materials import albedo_input, emission_input, emission_varies, parse_material
-from .writeback import ATTRIBUTE, baked_state
+from .writeback import ATTRIBUTE, TILE_PROP, baked_state
 
 STATE = "penumbra_preview"
 
@@ -78,16 +78,45 @@ def _make_material(name, state, original):
     emit.inputs["Strength"].default_value = 1.0
     img = bpy.data.images.get(state.get("image", "")) if state.get("image") else None
     if img is not None:
-        uv = nt.nodes.new("ShaderNodeUVMap")
+        if state.get("uv_attribute"):
+            # An object whose modifiers copy faces: its lightmap UVs are a corner attribute of the modified
+            # surface (writeback.unwrap_copies), which a UV Map node cannot name in Blender 3.4.
+            uv = nt.nodes.new("ShaderNodeAttribute")
+            uv.attribute_type = "GEOMETRY"
+            uv.attribute_name = state["uv_attribute"]
+            uv_out = uv.outputs["Vector"]
+        else:
+            uv = nt.nodes.new("ShaderNodeUVMap")
+            # Without a UV Map node an Image Texture reads the render-active UV map, not the lightmap's.
+            uv.uv_map = state.get("uv_map", "")
+            uv_out = uv.outputs["UV"]
         uv.location = (-400, 0)
-        # Without a UV Map node an Image Texture reads the render-active UV map, not the lightmap's.
-        uv.uv_map = state.get("uv_map", "")
+        if state.get("tiles"):
+            # One lightmap, a tile per collection instance: uv * scale + offset, from the instancing empty's
+            # TILE_PROP (the object's own when it is not an instance).
+            tile = nt.nodes.new("ShaderNodeAttribute")
+            tile.attribute_type = "INSTANCER"
+            tile.attribute_name = TILE_PROP
+            sep = nt.nodes.new("ShaderNodeSeparateXYZ")
+            nt.links.new(tile.outputs["Vector"], sep.inputs[0])
+            scale = nt.nodes.new("ShaderNodeVectorMath")
+            scale.operation = "SCALE"
+            nt.links.new(uv_out, scale.inputs[0])
+            nt.links.new(sep.outputs["Z"], scale.inputs["Scale"])
+            offset = nt.nodes.new("ShaderNodeCombineXYZ")
+            nt.links.new(sep.outputs["X"], offset.inputs["X"])
+            nt.links.new(sep.outputs["Y"], offset.inputs["Y"])
+            add = nt.nodes.new("ShaderNodeVectorMath")
+            add.operation = "ADD"
+            nt.links.new(scale.outputs["Vector"], add.inputs[0])
+            nt.links.new(offset.outputs["Vector"], add.inputs[1])
+            uv_out = add.outputs["Vector"]
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.location = (-150, 0)
         tex.image = img
         tex.interpolation = "Linear"
         tex.extension = "EXTEND"
-        nt.links.new(uv.outputs["UV"], tex.inputs["Vector"])
+        nt.links.new(uv_out, tex.inputs["Vector"])
         nt.links.new(tex.outputs["Color"], emit.inputs["Color"])
     else:
         attr = nt.nodes.new("ShaderNodeVertexColor")
@@ -191,9 +220,15 @@ def preview_off(ob):
     return True
 
 
+def instanced_only(scene):
+    """Objects baked for their collection instances in `scene` that are in no collection of the scene."""
+    return [o for o in bpy.data.objects if o.type == "MESH" and scene.objects.get(o.name) is None and
+            any(scene.objects.get(n) is not None for n in baked_state(o).get("tiles", {}))]
+
+
 def set_preview(scene, on):
     changed = []
-    for ob in scene.objects:
+    for ob in list(scene.objects) + instanced_only(scene):
         if ob.type != "MESH":
             continue
         if (preview_on if on else preview_off)(ob):

@@ -92,6 +92,11 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         description="Bake the light arriving at each surface (Cycles' Diffuse Direct + Indirect without Color) "
                     "instead of the light it reflects: what a game engine multiplies by its own albedo texture. "
                     "The preview multiplies it by the material's colour", default=False)
+    instance_lightmaps: BoolProperty(
+        name="Instance Lightmaps",
+        description="Give every collection instance of an object a tile of its own in the object's lightmap "
+                    "(the preview picks the tile per instance). Off: instances take part in the solve but get "
+                    "no baked light", default=False)
     uv_map: StringProperty(
         name="UV Map",
         description="Existing UV map to bake the lightmaps into. Empty: Penumbra creates 'PenumbraLightmap' "
@@ -113,7 +118,8 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         targets = {t for t, on in (("LIGHTMAP", self.lightmap), ("COLOR_ATTRIBUTE", self.color_attribute)) if on}
         s = {"resolution": self.resolution, "margin": self.margin, "targets": targets,
              "uv_map": self.uv_map or None, "selection_only": self.selection_only,
-             "output_dir": self.output_dir or None, "irradiance": self.irradiance}
+             "output_dir": self.output_dir or None, "irradiance": self.irradiance,
+                "instance_lightmaps": self.instance_lightmaps}
         s.update((key, getattr(self, key)) for key in settings_table.SOLVER_KEYS)
         return s
 
@@ -137,6 +143,12 @@ class PenumbraObjectSettings(bpy.types.PropertyGroup):
         name="Bake",
         description="Give this object a lightmap and color attribute. When off it still casts shadows and "
                     "bounces light onto the others, but keeps no baked light of its own", default=True)
+    two_sided: BoolProperty(
+        name="Two-sided",
+        description="Light both sides of every face, as Cycles renders them: for open surfaces (planes, "
+                    "cards, walls of one face) and flipped normals. Each face then receives and reflects "
+                    "light on its back too, and its lightmap holds the brighter of its two sides. Off: the "
+                    "side its normal points to only (half the faces to solve)", default=False)
 
 
 class PenumbraRuntime(bpy.types.PropertyGroup):

@@ -23,6 +23,25 @@ PROP = "penumbra"            # custom property on a baked object: what the last 
 # Above this fraction of shared texels a lightmap is called wrong; a few shared texels where islands touch
 # at the packing margin are harmless.
 OVERLAP_WARN = 0.02
+# Objects whose modifiers (Array, Mirror, ...) copy faces onto the same lightmap UVs get a UV layout of their
+# own, made for the modified surface: a mesh of it (COPIES_PREFIX + object) unwrapped like any other, which a
+# Geometry Nodes modifier appended by the bake (COPIES_MODIFIER) copies corner by corner into the corner
+# attribute COPIES_ATTRIBUTE of the evaluated mesh, where the preview (and any material) reads it.
+COPIES_PREFIX = "PenumbraUV_"
+COPIES_MODIFIER = "Penumbra Lightmap UV"
+COPIES_ATTRIBUTE = "PenumbraLightmapUV"
+# An object whose collection instances get lightmaps of their own (the instance_lightmaps setting) has one
+# lightmap with a tile per instance: each instancing empty (and the object itself, when it is rendered) holds
+# its tile as the custom property TILE_PROP = (u offset, v offset, scale), which the preview reads with an
+# Attribute node of type Instancer (an instance reads its empty's, the object itself its own).
+TILE_PROP = "penumbra_lightmap_tile"
+
+
+def instance_tiles(instancers, own):
+    """{instancer name (or "" for the object itself): (u offset, v offset, scale)} on a square grid."""
+    names = ([""] if own else []) + list(instancers)
+    g = max(1, math.ceil(math.sqrt(len(names))))
+    return {n: ((k % g) / g, (k // g) / g, 1.0 / g) for k, n in enumerate(names)}
 
 
 class WritebackError(RuntimeError):
@@ -150,8 +169,20 @@ def _call_op(idname, **props):
     return call(idname, None, props)
 
 
-def _unwrap(ob, scene, view_layer):
-    """Smart-project every face of `ob` into its active UV map (edit mode, with `ob` alone selected)."""
+def _unwrap(ob, scene, view_layer, stand_in=False):
+    """Smart-project every face of `ob` into its active UV map (edit mode, with `ob` alone selected).
+    `stand_in`: `ob` is not in the view layer."""
+    if stand_in:
+        # A collection member seen only through its instances is not in the view layer, where edit mode needs
+        # it: its mesh is unwrapped through a stand-in object linked to the scene meanwhile.
+        tmp = bpy.data.objects.new(ob.name + ".penumbra-unwrap", ob.data)
+        tmp.matrix_world = ob.matrix_world
+        scene.collection.objects.link(tmp)
+        try:
+            _unwrap(tmp, scene, view_layer)
+        finally:
+            bpy.data.objects.remove(tmp)
+        return
     ob.select_set(True, view_layer=view_layer)
     view_layer.objects.active = ob
     try:
@@ -170,7 +201,7 @@ def _unwrap(ob, scene, view_layer):
         ob.select_set(False, view_layer=view_layer)
 
 
-def _prepare_uv(ob, scene, view_layer, uv_setting, tx):
+def _prepare_uv(ob, scene, view_layer, uv_setting, tx, stand_in=False):
     me = ob.data
     if uv_setting:
         if uv_setting not in me.uv_layers:
@@ -210,7 +241,7 @@ def _prepare_uv(ob, scene, view_layer, uv_setting, tx):
     flags = _element_flags(me)
     attrs_before = compat.mesh_attribute_names(me)
     try:
-        _unwrap(ob, scene, view_layer)
+        _unwrap(ob, scene, view_layer, stand_in)
     finally:
         _restore_element_flags(me, flags)
         compat.drop_new_internal_attributes(me, attrs_before)
@@ -232,14 +263,191 @@ def prepare_uvs(objects, scene, view_layer, uv_setting, tx):
         return out
     sel = _SelectionState(view_layer)
     try:
+        in_layer = set()
         for o in view_layer.objects:
+            in_layer.add(o.name_full)
             if o.select_get(view_layer=view_layer):
                 o.select_set(False, view_layer=view_layer)
         for ob in objects:
-            out[ob.name] = _prepare_uv(ob, scene, view_layer, uv_setting, tx)
+            # An object baked for its collection instances only is in no collection of the view layer.
+            out[ob.name] = _prepare_uv(ob, scene, view_layer, uv_setting, tx, ob.name_full not in in_layer)
     finally:
         sel.restore()
     return out
+
+
+# ---------------------------------------------------------------------------------------------- modifier copies
+
+def _is_copies_modifier(mod):
+    return mod.type == "NODES" and mod.name == COPIES_MODIFIER and mod.node_group is not None and \
+        bool(mod.node_group.get("penumbra"))
+
+
+def find_copies(objs, names, dg, uv, native, resolution):
+    """The objects among `names` whose modifiers lay faces onto texels of the bake's own lightmap UV map that
+    other faces use too (an Array's or a Mirror's copies): the share of texels is measured on the modified
+    surface, as the lightmap would be baked. Objects without modifiers are not looked at: their UV map is a
+    smart projection of their own faces, which never overlaps."""
+    cand, tris = [], []
+    for n in names:
+        ob = objs[n]
+        # Any modifier: the mesh is measured as the bake's depsgraph evaluated it, whichever switch it heeded.
+        if uv[n][0] != UV_NAME or not any(not _is_copies_modifier(m) for m in ob.modifiers):
+            continue
+        ob_eval = ob.evaluated_get(dg)
+        me = ob_eval.to_mesh()
+        try:
+            if UV_NAME not in me.uv_layers:
+                continue
+            me.calc_loop_triangles()
+            n_tri = len(me.loop_triangles)
+            tri_l = _get(me.loop_triangles, "loops", n_tri, np.int32, 3)
+            uvs = _get(me.uv_layers[UV_NAME].data, "uv", len(me.loops), np.float32, 2)
+            tris.append(np.ascontiguousarray(uvs[tri_l], np.float32))
+            cand.append(n)
+        finally:
+            ob_eval.to_mesh_clear()
+    if not cand:
+        return []
+    shared = native.uv_overlaps(tris, min(resolution, 256))
+    return [n for n, sh in zip(cand, shared) if float(sh) > OVERLAP_WARN]
+
+
+def unwrap_copies(ob, dg, scene, view_layer, tx):
+    """A mesh of `ob`'s modified surface (corner for corner the evaluated mesh) with a smart-projected
+    PenumbraLightmap UV map, held by an object of its own that no collection shows, and the Geometry Nodes
+    group that copies those UVs onto the evaluated mesh. Nothing is attached to `ob` before the commit
+    (attach_copies); until then a rollback removes all three."""
+    ob_eval = ob.evaluated_get(dg)
+    me = bpy.data.meshes.new_from_object(ob_eval)
+    made = {"mesh": me.name}
+
+    def drop(made=made):
+        for coll, key in (("node_groups", "group"), ("objects", "object"), ("meshes", "mesh")):
+            d = getattr(bpy.data, coll).get(made.get(key, ""))
+            if d is not None:
+                getattr(bpy.data, coll).remove(d)
+    tx.on_rollback(drop)
+    # Never rename onto a taken name: Blender 3.4 would rename the other data-block (an earlier bake's helper,
+    # which a rollback must leave as it was) instead.
+    me.name = _free_name(bpy.data.meshes, COPIES_PREFIX + ob.name)
+    made["mesh"] = me.name
+    if COPIES_ATTRIBUTE in me.attributes:           # copied from an earlier bake's modifier: not needed here
+        me.attributes.remove(me.attributes[COPIES_ATTRIBUTE])
+    layer = me.uv_layers.get(UV_NAME)
+    if layer is None:
+        raise WritebackError(f"object '{ob.name}': its modified surface lost the UV map '{UV_NAME}'")
+    me.uv_layers.active = layer
+    helper = bpy.data.objects.new(_free_name(bpy.data.objects, COPIES_PREFIX + ob.name), me)
+    made["object"] = helper.name
+    # The same transform as the object, so the smart projection sees the shapes an applied modifier gives.
+    helper.matrix_world = ob.matrix_world
+    scene.collection.objects.link(helper)
+    sel = _SelectionState(view_layer)
+    try:
+        for o in view_layer.objects:
+            if o.select_get(view_layer=view_layer):
+                o.select_set(False, view_layer=view_layer)
+        _unwrap(helper, scene, view_layer)
+    finally:
+        scene.collection.objects.unlink(helper)
+        sel.restore()
+    helper.matrix_world = ((1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 0, 1))
+    helper["penumbra"] = True
+    ng = _copies_group(helper)
+    made["group"] = ng.name
+    return me, ng.name
+
+
+def _free_name(coll, name):
+    """`name`, or the first `name.NNN` that no data-block of `coll` has."""
+    i, out = 0, name
+    while coll.get(out) is not None:
+        i += 1
+        out = f"{name}.{i:03d}"
+    return out
+
+
+def _copies_group(helper):
+    """Store Named Attribute (corner, vector) COPIES_ATTRIBUTE = the helper mesh's lightmap UV at the same
+    corner index (Sample Index over Object Info): the evaluated mesh keeps its geometry and gains the UVs."""
+    from . import compat
+    ng = bpy.data.node_groups.new(COPIES_MODIFIER, "GeometryNodeTree")
+    ng["penumbra"] = True
+    compat.geometry_group_sockets(ng)
+    nodes, links = ng.nodes, ng.links
+    gin, gout = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+    info = nodes.new("GeometryNodeObjectInfo")
+    info.inputs["Object"].default_value = helper
+    named = nodes.new("GeometryNodeInputNamedAttribute")
+    named.data_type = "FLOAT_VECTOR"
+    named.inputs["Name"].default_value = UV_NAME
+    sample = nodes.new("GeometryNodeSampleIndex")
+    sample.data_type, sample.domain = "FLOAT_VECTOR", "CORNER"
+    index = nodes.new("GeometryNodeInputIndex")
+    store = nodes.new("GeometryNodeStoreNamedAttribute")
+    store.data_type, store.domain = "FLOAT_VECTOR", "CORNER"
+    store.inputs["Name"].default_value = COPIES_ATTRIBUTE
+    links.new(gin.outputs[0], store.inputs["Geometry"])
+    links.new(info.outputs["Geometry"], sample.inputs["Geometry"])
+    links.new(compat.shown_socket(named.outputs, "Attribute"), compat.shown_socket(sample.inputs, "Value"))
+    links.new(index.outputs["Index"], sample.inputs["Index"])
+    links.new(compat.shown_socket(sample.outputs, "Value"), compat.shown_socket(store.inputs, "Value"))
+    links.new(store.outputs["Geometry"], gout.inputs[0])
+    return ng
+
+
+def _copies_parts(mod):
+    """The node group, helper object and helper mesh of one of our modifiers (those that exist)."""
+    ng = mod.node_group
+    out = [ng]
+    info = next((n for n in ng.nodes if n.type == "OBJECT_INFO"), None)
+    helper = info.inputs["Object"].default_value if info is not None else None
+    if helper is not None and helper.get("penumbra"):
+        out.append(helper)
+        if helper.data is not None and helper.data.users <= 1:
+            out.append(helper.data)
+    return out
+
+
+def _drop_copies_modifiers(o, discard):
+    for mod in [m for m in o.modifiers if _is_copies_modifier(m)]:
+        parts = _copies_parts(mod)
+        o.modifiers.remove(mod)
+        for d in parts:
+            discard(d)
+
+
+def attach_copies(ob, group_name, tx):
+    """At the commit: `ob`'s modifier of an earlier bake (and its helper) goes, and a new one with the group
+    unwrap_copies made is appended last in the stack, so it sees the surface every other modifier made."""
+    ob_name = ob.name
+
+    def attach():
+        o = tx.index("objects")[ob_name]
+
+        def retire(d):
+            # The old helper's names go free for the new one before it is removed with the others.
+            d.name = d.name[:40] + ".penumbra-old"
+            tx.discard(d)
+        _drop_copies_modifiers(o, retire)
+        mod = o.modifiers.new(COPIES_MODIFIER, "NODES")
+        ng = bpy.data.node_groups[group_name]
+        mod.node_group = ng
+        for d in _copies_parts(mod)[1:]:
+            if COPIES_PREFIX + ob_name not in (bpy.data.objects if isinstance(d, bpy.types.Object)
+                                               else bpy.data.meshes):
+                d.name = COPIES_PREFIX + ob_name
+    tx.on_commit(attach)
+
+
+def detach_copies(ob, tx):
+    """At the commit: an earlier bake's modifier goes when this bake needs none (the copies were applied or
+    removed)."""
+    if not any(_is_copies_modifier(m) for m in ob.modifiers):
+        return
+    ob_name = ob.name
+    tx.on_commit(lambda: _drop_copies_modifiers(tx.index("objects")[ob_name], tx.discard))
 
 
 # ---------------------------------------------------------------------------------------------- sampling
@@ -283,12 +491,18 @@ def _world_loop_triangles(me, matrix, cache=None):
     return co_w, tri_v, tri_l
 
 
-def _lightmap_inputs(me, name, uv_name, matrix, cache=None):
-    """World-space corners (T,3,3) and UVs (T,3,2) of an evaluated mesh's loop triangles."""
-    if uv_name not in me.uv_layers:
+def _lightmap_inputs(me, name, uv_name, matrix, cache=None, copies=None):
+    """World-space corners (T,3,3) and UVs (T,3,2) of an evaluated mesh's loop triangles; with `copies` (the
+    mesh unwrapped for the modified surface, corner for corner) its UV map instead of the object's own."""
+    if copies is not None:
+        if len(copies.loops) != len(me.loops):
+            raise WritebackError(f"object '{name}': its modified surface changed while it was unwrapped")
+        uv = _get(copies.uv_layers[UV_NAME].data, "uv", len(me.loops), np.float32, 2)
+    elif uv_name not in me.uv_layers:
         raise WritebackError(f"object '{name}': the UV map '{uv_name}' does not survive its modifiers")
+    else:
+        uv = _get(me.uv_layers[uv_name].data, "uv", len(me.loops), np.float32, 2)
     co_w, tri_v, tri_l = _world_loop_triangles(me, matrix, cache)
-    uv = _get(me.uv_layers[uv_name].data, "uv", len(me.loops), np.float32, 2)
     if np.linalg.det(matrix[:3, :3]) < 0:
         # A mirroring transform reverses the winding, and the solver takes a triangle's side from its
         # winding: without this a mirrored object's lightmap would hold the light behind each face.
@@ -401,7 +615,8 @@ def _front_warning(name, area, rgb):
     if dark > 0.5:
         return (f"object '{name}': {100 * dark:.0f} % of its surface receives no light on its front side. "
                 f"Penumbra lights faces on the side their normals point to; Cycles lights both sides, so a render "
-                f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals)")
+                f"shows light here. If its normals are flipped, recalculate them (Mesh > Normals); if it is an "
+                f"open surface seen from both sides, turn on Two-sided in its Object Properties > Penumbra")
     return None
 
 
@@ -433,21 +648,35 @@ AHEAD_TEXELS = 1 << 23
 class _Job:
     """One object's write-back: what is read from it first, then what the batched native calls give."""
     __slots__ = ("name", "uv_name", "uv_created", "albedo", "reflects", "old", "record", "front", "front_rgb",
-                 "positions", "uvs", "uv_outside", "shared", "pixels", "corners", "corner_rgb", "other_topology")
+                 "positions", "uvs", "uv_outside", "shared", "pixels", "corners", "corner_rgb", "other_topology",
+                 "two_sided")
 
 
-def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo):
-    """Everything the write-back needs of one object's evaluated mesh, from one evaluation of it."""
+def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None, placements=None):
+    """Everything the write-back needs of one object's evaluated mesh, from one evaluation of it; `copies`:
+    the mesh whose UV map the lightmap of a modified surface uses (unwrap_copies)."""
     targets = settings["targets"]
     job = _Job()
     job.name, job.uv_name, job.uv_created, job.albedo, job.reflects = ob.name, uv_name, uv_created, albedo, reflects
     job.old = baked_state(ob)
     job.record = {"uv_map": uv_name, "uv_created": bool(uv_created or job.old.get("uv_created", False)) and
                   uv_name == UV_NAME, "irradiance": bool(settings.get("irradiance"))}
+    if "LIGHTMAP" in targets:
+        # The preview reads the lightmap UVs from this attribute of the evaluated mesh, if any.
+        job.record["uv_attribute"] = COPIES_ATTRIBUTE if copies is not None else ""
+        job.record["tiles"] = {}
+        job.record["own_tile"] = []
     job.front = job.front_rgb = job.positions = job.uvs = job.pixels = job.corners = job.corner_rgb = None
     job.uv_outside, job.shared, job.other_topology = False, 0.0, False
     ob_eval = ob.evaluated_get(dg)
     matrix = np.array(ob_eval.matrix_world, np.float64)
+    if placements:
+        # (own, [(instancer, matrix)]): the first placement stands for the object in the side check and the
+        # colour attribute, which all its instances share.
+        own, inst = placements
+        tiles = instance_tiles([n for n, _ in inst], own)
+        mats = ([("", matrix)] if own else []) + [(n, np.asarray(m, np.float64)) for n, m in inst]
+        matrix = mats[0][1]
     me = ob_eval.to_mesh()
     try:
         cache = _MeshCache(me, matrix)
@@ -455,9 +684,20 @@ def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo):
             # A black object reflects nothing whatever it receives, so its zero radiance says nothing of sides.
             job.front = _front_samples(me, matrix, cache)
         if "LIGHTMAP" in targets:
-            job.positions, job.uvs = _lightmap_inputs(me, ob_eval.name, uv_name, matrix, cache)
+            job.positions, job.uvs = _lightmap_inputs(me, ob_eval.name, uv_name, matrix, cache, copies)
             uvs = job.uvs
             job.uv_outside = bool(len(uvs) and (uvs.min() < -1e-4 or uvs.max() > 1 + 1e-4))
+            if placements:
+                pos, tiled = [], []
+                for n, m in mats:
+                    p, uv = (job.positions, uvs) if m is matrix else _lightmap_inputs(me, ob_eval.name, uv_name, m)
+                    ox, oy, s = tiles[n]
+                    pos.append(p)
+                    tiled.append(uv * np.float32(s) + np.array([ox, oy], np.float32))
+                job.positions = np.ascontiguousarray(np.concatenate(pos), np.float32)
+                job.uvs = np.ascontiguousarray(np.concatenate(tiled), np.float32)
+                job.record["tiles"] = {n: list(t) for n, t in tiles.items() if n}
+                job.record["own_tile"] = list(tiles[""]) if "" in tiles else []
         if "COLOR_ATTRIBUTE" in targets:
             base = ob.data
             if len(me.loops) == len(base.loops) and len(me.polygons) == len(base.polygons):
@@ -520,15 +760,22 @@ class _LightmapBaker:
                     while self.ahead and self.ahead + texels > AHEAD_TEXELS and not self.stop:
                         self.room.wait()
                 if not self.stop and self.error is None:
-                    px = solution.bake_lightmaps([j.positions for j in chunk], [j.uvs for j in chunk], res, res,
-                                                 margin, irradiance=[irradiance or j.albedo is not None
-                                                                     for j in chunk])
+                    # A two-sided object is baked a second time with every triangle wound the other way,
+                    # which the solver reads as its back side; the lightmap keeps the brighter of the two.
+                    both = [j for j in chunk if getattr(j, "two_sided", False)]
+                    bakes = chunk + both
+                    pos = [j.positions for j in chunk] + [np.ascontiguousarray(j.positions[:, ::-1]) for j in both]
+                    uvs = [j.uvs for j in chunk] + [np.ascontiguousarray(j.uvs[:, ::-1]) for j in both]
+                    px = solution.bake_lightmaps(pos, uvs, res, res, margin,
+                                                 irradiance=[irradiance or j.albedo is not None for j in bakes])
                     px = np.asarray(px)
-                    if px.shape != (len(chunk), res, res, 4):
+                    if px.shape != (len(bakes), res, res, 4):
                         raise WritebackError(f"the solver returned lightmaps of shape {px.shape}, expected "
-                                             f"{(len(chunk), res, res, 4)}")
+                                             f"{(len(bakes), res, res, 4)}")
                     for j, p in zip(chunk, px):
                         j.pixels = p
+                    for j, p in zip(both, px[len(chunk):]):
+                        j.pixels[..., :3] = np.maximum(j.pixels[..., :3], p[..., :3])
                     with self.room:
                         self.ahead += texels
             except BaseException as e:      # re-raised in the main thread by wait()
@@ -728,8 +975,31 @@ def _record(ob, job, tx):
     tx.on_commit(set_prop)
 
 
+def _tile_props(ob, job, tx):
+    """At the commit: each instancing empty (and the object, when rendered) gets its tile's TILE_PROP; the
+    empties an earlier bake gave one and this one does not lose it."""
+    ob_name, tiles, own, old = ob.name, job.record["tiles"], job.record["own_tile"], job.old.get("tiles", {})
+
+    def set_props():
+        objs = tx.index("objects")
+        for n in set(old) - set(tiles):
+            o = objs.get(n)
+            if o is not None and o.library is None:
+                o.pop(TILE_PROP, None)
+        for n, t in tiles.items():
+            objs[n][TILE_PROP] = t
+        o = objs[ob_name]
+        if own:
+            o[TILE_PROP] = own
+        else:
+            o.pop(TILE_PROP, None)
+    if tiles or old or ob.get(TILE_PROP) is not None:
+        tx.on_commit(set_props)
+
+
 def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, files, black=frozenset(),
-                  albedo_maps=None, progress=None):
+                  albedo_maps=None, progress=None, copies=None, two_sided=frozenset(), instances=None,
+                  instance_only=frozenset()):
     """Rasterise and store the objects' bakes; {name: outputs}. Nothing here replaces earlier results: that
     is the commit.
 
@@ -742,6 +1012,7 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
     targets = settings["targets"]
     irradiance = bool(settings.get("irradiance"))
     albedo_maps = albedo_maps or {}
+    copies = copies or {}
     n = max(len(names), 1)
     images = {}
     for img in bpy.data.images:
@@ -757,7 +1028,12 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
         for i, name in enumerate(names):
             step(0.3 * i / n)
             job = _gather(objs[name], dg, uv[name][0], uv[name][1], settings, reflects=name not in black,
-                          albedo=albedo_maps.get(name))
+                          albedo=albedo_maps.get(name), copies=copies.get(name, (None,))[0],
+                          placements=(name not in instance_only, instances[name])
+                          if instances and name in instances else None)
+            job.two_sided = name in two_sided
+            if job.two_sided:
+                job.front = None         # both sides are lit: no side to warn about
             jobs.append(job)
             if baker is not None:
                 baker.add(job)
@@ -773,6 +1049,10 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
         if "COLOR_ATTRIBUTE" in targets:
             for j, rgb in zip(jobs, _radiance_of_all(solution, [j.corners for j in jobs], irradiance=irradiance)):
                 j.corner_rgb = rgb
+            both = [j for j in jobs if j.two_sided]
+            flipped = [(j.corners[0], np.ascontiguousarray(-j.corners[1])) for j in both]
+            for j, rgb in zip(both, _radiance_of_all(solution, flipped, irradiance=irradiance)):
+                j.corner_rgb = np.maximum(j.corner_rgb, rgb)     # the brighter side, as for the lightmap
             for i, j in enumerate(jobs):
                 step(0.3 + 0.2 * i / n)
                 _write_attribute(objs[j.name], j, settings, tx, outputs[j.name])
@@ -785,6 +1065,8 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
                 _write_lightmap(ob, j, native, settings, tx, files, outputs[j.name], images)
                 baker.stored(j)
             _record(ob, j, tx)
+            if "LIGHTMAP" in targets:
+                _tile_props(ob, j, tx)
             j.pixels = j.positions = j.uvs = j.corners = None     # the memory goes as soon as it is stored
     finally:
         if baker is not None:
@@ -827,15 +1109,17 @@ class _active_scene:
 
 
 def write_all(scene, view_layer, object_names, solution, native, settings, report, progress=None,
-              before_commit=None, black=()):
-    """`black`: names of objects whose every face has albedo 0 (no side check for them)."""
+              before_commit=None, black=(), two_sided=(), instances=None, instance_only=()):
+    """`black`: names of objects whose every face has albedo 0 (no side check for them). `two_sided`: names
+    of objects lit on both sides; their lightmap and colours hold the brighter side, per texel and corner."""
     with _active_scene(scene, view_layer):
         return _write_all(scene, view_layer, object_names, solution, native, settings, report, progress,
-                          before_commit, frozenset(black))
+                          before_commit, frozenset(black), frozenset(two_sided), instances or {},
+                          frozenset(instance_only))
 
 
 def _write_all(scene, view_layer, object_names, solution, native, settings, report, progress, before_commit,
-               black):
+               black, two_sided=frozenset(), instances=None, instance_only=frozenset()):
     """Unwrap, rasterise and store every baked object; all or nothing, on disk too: lightmap files are
     written under temporary names and moved into place only at the commit. `before_commit(outputs)` runs
     last before the commit; whatever it raises rolls everything back."""
@@ -883,7 +1167,39 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                     mesh.uv_layers.remove(mesh.uv_layers[uv[name][0]])
                 continue
             baked.append(name)
-        albedo_maps = _albedo_maps(scene, view_layer, baked, uv, settings, report, objs)
+        copies = {}
+        if "LIGHTMAP" in settings["targets"] and not settings.get("uv_map"):
+            for name in find_copies(objs, [n for n in baked if n not in (instances or {})], dg, uv, native,
+                                    settings["resolution"]):
+                copies[name] = unwrap_copies(objs[name], dg, scene, view_layer, tx)
+                report["notes"].append(
+                    f"object '{name}': its modifiers copy faces onto the same lightmap UVs, so the lightmap uses "
+                    f"a UV layout made for its modified surface (mesh '{copies[name][0].name}'), which the "
+                    f"Geometry Nodes modifier '{COPIES_MODIFIER}' appended to it stores in the corner attribute "
+                    f"'{COPIES_ATTRIBUTE}' for the preview and your materials (an Attribute node)")
+        for name in baked:
+            if "LIGHTMAP" in settings["targets"]:
+                if name in copies:
+                    attach_copies(objs[name], copies[name][1], tx)
+                else:
+                    detach_copies(objs[name], tx)
+        if copies:
+            # The unwrap linked and unlinked an object: the evaluated objects are taken anew.
+            if bpy.context.scene == scene:
+                dg = bpy.context.evaluated_depsgraph_get()
+            else:
+                view_layer.update()
+                dg = view_layer.depsgraph
+        tiled = set(instances or {}) if "LIGHTMAP" in settings["targets"] else set()
+        albedo_maps = _albedo_maps(scene, view_layer, [n for n in baked if n not in copies and n not in tiled], uv,
+                                   settings, report, objs)
+        for n in list(copies) + [n for n in baked if n in tiled]:
+            from . import albedo
+            if albedo.needs_bake(objs[n]) and not settings.get("irradiance"):
+                report["warnings"].append(f"object '{n}': albedo averaged: its material's colour varies across the "
+                                          f"surface, but its lightmap is laid out for its modifier copies or "
+                                          f"its instances, which Cycles' albedo bake cannot follow; the lightmap "
+                                          f"uses the material's mean albedo")
         if albedo_maps:
             # The bake operator re-evaluated the scene; the depsgraph's evaluated objects are taken anew.
             if bpy.context.scene == scene:
@@ -892,7 +1208,8 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                 view_layer.update()
                 dg = view_layer.depsgraph
         outputs.update(write_objects(objs, baked, solution, native, dg, uv, settings, tx, report, files, black=black,
-                                     albedo_maps=albedo_maps, progress=progress))
+                                     albedo_maps=albedo_maps, progress=progress, copies=copies,
+                                     two_sided=two_sided, instances=instances, instance_only=instance_only))
         if before_commit is not None:
             before_commit(baked, outputs)
         for tmp, path in files.items():
@@ -957,6 +1274,15 @@ def remove_bake(ob):
         me.attributes.remove(me.attributes[state["attribute"]])
     if state.get("uv_created") and state.get("uv_map") in me.uv_layers:
         me.uv_layers.remove(me.uv_layers[state["uv_map"]])
+    for n in state.get("tiles", {}):
+        o = bpy.data.objects.get(n)
+        if o is not None and o.library is None:
+            o.pop(TILE_PROP, None)
+    ob.pop(TILE_PROP, None)
+    gone = []
+    _drop_copies_modifiers(ob, gone.append)
+    if gone:
+        bpy.data.batch_remove(gone)
     del ob[PROP]
     return True
 
