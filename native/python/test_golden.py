@@ -107,11 +107,11 @@ def test_office_matches_the_recorded_run():
         ref = want[name]
         assert got.shape == ref.shape, name
         scale = float(np.abs(ref).max())
-        # A lightmap texel may also move by up to 1e-4 of the peak: in Debian sid (Embree 4.4, newer glibc) 9 of
-        # 65536 texels differed by up to 3e-5 of the peak from this host's record, with every count equal.
+        # A lightmap texel or probe may also move by up to 1e-4 of the peak, with every count equal: in Debian sid
+        # (Embree 4.4, newer glibc) 9 of 65536 texels differed by up to 3e-5 of the peak from this host's record;
+        # in Debian 13 (Embree 4.3, glibc 2.41) 12 of 26865 probe values by up to 2.1e-5 of it (1.03e-4, peak 5).
         tol = RTOL * np.maximum(np.abs(ref), 1e-3 * scale)
-        if name == "lightmap":
-            tol = np.maximum(tol, 1e-4 * scale)
+        tol = np.maximum(tol, 1e-4 * scale)
         bad = np.abs(got - ref) > tol
         assert not bad.any(), (f"{name}: {int(bad.sum())} of {bad.size} values moved, the largest by "
                                f"{float(np.abs(got - ref).max()):.3g} (peak {scale:.3g}); re-record if intended")
