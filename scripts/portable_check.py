@@ -102,13 +102,18 @@ def main():
                 want = "$ORIGIN/lib" if obj == objects[0] else "$ORIGIN"
                 if f"Library runpath: [{want}]" not in dyn:
                     fail(f"{obj} has no DT_RUNPATH {want}:\n{dyn}")
+        # The loader itself, as ldd runs it: ldd is a bash script, and bash needs libtinfo, which the zip
+        # vendors (for LLVM) and scripts/portable_root_check.sh hides from the system.
+        lister = ["/lib64/ld-linux-x86-64.so.2", "--list"]
         reached = set()
         resolved_inside = 0
         for obj in objects:
             if soname(obj) in reached:
                 continue
-            out = subprocess.run(["ldd", obj], env={"PATH": "/usr/bin:/bin"}, capture_output=True, text=True,
-                                 check=True).stdout
+            r = subprocess.run(lister + [obj], env={"PATH": "/usr/bin:/bin"}, capture_output=True, text=True)
+            if r.returncode != 0:   # the loader could not load something it found (127)
+                fail(f"{' '.join(lister)} {soname(obj)}: exit {r.returncode}\n{r.stdout[-2000:]}{r.stderr[-2000:]}")
+            out = r.stdout
             for line in out.splitlines():
                 m = re.match(r"\s*(\S+)\s+=>\s+(.+?)\s+\(", line) or re.match(r"\s*(\S+)\s+=>\s+(not found)", line)
                 if not m:

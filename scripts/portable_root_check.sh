@@ -14,22 +14,10 @@
 #     folder, the example Cornell box baked. Blender itself needs some of the same libraries (OpenImageIO,
 #     Embree, TBB, ...); only those are left visible, and the script reports which copy the process mapped.
 set -euo pipefail
-cd "$(dirname "$0")/.."
-ZIP=$(realpath "${1:-build/penumbra-addon-portable.zip}")
-[ -f "$ZIP" ] || { echo "no $ZIP: build it with cmake --build build --target portable_zip" >&2; exit 1; }
-ROOT=$(PENUMBRA_SUITE=bookworm PENUMBRA_ROOT=${PENUMBRA_PORTABLE_ROOT:-/var/cache/penumbra/bookworm-blender-root} \
-       PENUMBRA_ROOT_PACKAGES='blender python3-numpy' bash scripts/sid_root.sh)
-CHECK=/penumbra-portable-check
-rm -rf "$ROOT$CHECK"
-mkdir -p "$ROOT$CHECK/examples"
-cp "$ZIP" "$ROOT$CHECK/penumbra-addon-portable.zip"
-cp scripts/portable_check.py scripts/portable_zip.py scripts/portable_bake.py "$ROOT$CHECK/"
-cp examples/cornell_box.py "$ROOT$CHECK/examples/"
-/usr/bin/python3 -c 'import sys, zipfile; print("\n".join(n[len("penumbra/lib/"):] for n in zipfile.ZipFile(sys.argv[1]).namelist()
-                      if n.startswith("penumbra/lib/") and ".so" in n))' "$ZIP" > "$ROOT$CHECK/vendored.txt"
 
-unshare -m --propagation private bash -s "$ROOT" "$CHECK" <<'EOF'
-set -euo pipefail
+# The checks themselves, in the private mount namespace (the script runs itself again under unshare; its stdin
+# is /dev/null so that no command inside can read anything meant for the shell).
+inner() {
 ROOT=$1 CHECK=$2
 mount -t proc proc "$ROOT/proc"
 mount --rbind /dev "$ROOT/dev"
@@ -57,23 +45,33 @@ mapfile -t present < <(system_copies "${vendored[@]}")
 echo "the zip vendors ${#vendored[@]} libraries; the root has system copies of ${#present[@]} of them (Blender's dependencies)"
 
 echo "== 2. the module alone with every system copy hidden (python3.11, scripts/portable_check.py)"
+# Except those that the interpreter and numpy map before the module is imported (libz, libexpat, BLAS, ...):
+# they belong to the process that loads the add-on, as Blender's own libraries do in 3.
+mapfile -t interp < <(in_root python3.11 -c "import numpy, numpy.linalg
+print('\n'.join(sorted({l.split()[-1] for l in open('/proc/self/maps') if '.so' in l.split()[-1]})))" |
+  while read -r f; do in_root readlink -f "$f"; done | sort -u)
+hidden=()
+for f in "${present[@]}"; do
+  printf '%s\n' "${interp[@]}" | grep -qxF "$f" || hidden+=("$f")
+done
+echo "of the system copies, $(( ${#present[@]} - ${#hidden[@]} )) stay visible because python3.11 and numpy map them before the import; ${#hidden[@]} are hidden"
 (
-  hide "${present[@]}"
+  hide "${hidden[@]}"
   in_root python3.11 "$CHECK/portable_check.py" "$CHECK/penumbra-addon-portable.zip"
   # Proof that the hiding bites: a system copy that is still wanted now fails to load.
-  in_root python3.11 -c "import ctypes; ctypes.CDLL('${present[0]##*/}')" 2>/dev/null &&
-    { echo "hiding did not work: ${present[0]} still loads"; exit 1; }
-  echo "(control: loading the hidden ${present[0]##*/} by name fails, as it should)"
-  for f in "${present[@]}"; do umount "$ROOT$f"; done
+  in_root python3.11 -c "import ctypes; ctypes.CDLL('${hidden[0]}')" 2>/dev/null &&
+    { echo "hiding did not work: ${hidden[0]} still loads"; exit 1; }
+  echo "(control: loading the hidden ${hidden[0]} fails, as it should)"
+  for f in "${hidden[@]}"; do umount "$ROOT$f"; done
 )
 
 echo "== 3. a real headless bake: the zip installed in an empty user folder, the Cornell box baked"
-mapfile -t blender_needs < <(in_root ldd /usr/bin/blender | awk '$2 == "=>" {print $1}')
+mapfile -t blender_needs < <(in_root /lib64/ld-linux-x86-64.so.2 --list /usr/bin/blender | awk '$2 == "=>" {print $1}')
 keep=() drop=()
 for f in "${present[@]}"; do
   # $f is the real file (libfoo.so.1.2.3); Blender's needs are sonames (libfoo.so.1)
-  needed=0
-  for n in "${blender_needs[@]}"; do case "$(basename "$f")" in "$n"|"$n".*) needed=1 ;; esac; done
+  needed=0 base=${f##*/}
+  for n in "${blender_needs[@]}"; do case "$base" in "$n"|"$n".*) needed=1; break ;; esac; done
   if [ "$needed" = 1 ]; then keep+=("$f"); else drop+=("$f"); fi
 done
 echo "of the system copies, ${#keep[@]} stay visible because Blender itself links them; ${#drop[@]} are hidden"
@@ -87,4 +85,24 @@ if [ "$status" != 0 ]; then tail -n 40 "$ROOT/tmp/bake.log"; echo "the bake fail
 grep -E '^(PORTABLE-BAKE|Penumbra:)' "$ROOT/tmp/bake.log"
 ls "$ROOT/tmp/out" | grep -q '\.exr$' || { echo "the bake wrote no lightmap"; exit 1; }
 echo "== portable root check: ok"
-EOF
+}
+if [ "${1:-}" = --inner ]; then
+  inner "$2" "$3"
+  exit
+fi
+SELF=$(realpath "$0")
+cd "$(dirname "$0")/.."
+ZIP=$(realpath "${1:-build/penumbra-addon-portable.zip}")
+[ -f "$ZIP" ] || { echo "no $ZIP: build it with cmake --build build --target portable_zip" >&2; exit 1; }
+ROOT=$(PENUMBRA_SUITE=bookworm PENUMBRA_ROOT=${PENUMBRA_PORTABLE_ROOT:-/var/cache/penumbra/bookworm-blender-root} \
+       PENUMBRA_ROOT_PACKAGES='blender python3-numpy' bash scripts/sid_root.sh)
+CHECK=/penumbra-portable-check
+rm -rf "$ROOT$CHECK"
+mkdir -p "$ROOT$CHECK/examples"
+cp "$ZIP" "$ROOT$CHECK/penumbra-addon-portable.zip"
+cp scripts/portable_check.py scripts/portable_zip.py scripts/portable_bake.py "$ROOT$CHECK/"
+cp examples/cornell_box.py "$ROOT$CHECK/examples/"
+/usr/bin/python3 -c 'import sys, zipfile; print("\n".join(n[len("penumbra/lib/"):] for n in zipfile.ZipFile(sys.argv[1]).namelist()
+                      if n.startswith("penumbra/lib/") and ".so" in n))' "$ZIP" > "$ROOT$CHECK/vendored.txt"
+
+unshare -m --propagation private bash "$SELF" --inner "$ROOT" "$CHECK" < /dev/null

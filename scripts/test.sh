@@ -88,8 +88,15 @@ portable_zip() {
   "$py" scripts/portable_zip.py "$BUILD/addon/penumbra" "$BUILD/portable" "$BUILD/penumbra-addon-portable.zip"
   "$py" scripts/portable_check.py "$BUILD/penumbra-addon-portable.zip"
 }
-run_or_start "portable zip: build and check (scripts/portable_zip.py, scripts/portable_check.py)" \
-  "$BUILD/background-portable.log" portable_zip
+# Host leg only (test_sid.sh sets PENUMBRA_SKIP_PORTABLE=1): the zip is meant to be built on Debian 12; in Debian
+# 13 and sid, libheif (>= 1.16, an OpenImageIO dependency) dlopens plugins from its fixed system directory,
+# which the check rightly reports (docs/blender-versions.md).
+if [ "${PENUMBRA_SKIP_PORTABLE:-0}" = 1 ]; then
+  echo "== portable zip: skipped (PENUMBRA_SKIP_PORTABLE=1)"
+else
+  run_or_start "portable zip: build and check (scripts/portable_zip.py, scripts/portable_check.py)" \
+    "$BUILD/background-portable.log" portable_zip
+fi
 # The interpreter the module was built for (the one Blender embeds), not the python3 first on PATH.
 PY=$(cat "$BUILD/python_executable.txt")
 echo "== native module tests ($PY -m pytest)"

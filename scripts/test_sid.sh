@@ -45,7 +45,7 @@ mount -t tmpfs tmpfs "$SID_ROOT/tmp"; mounted+=("$SID_ROOT/tmp")
 
 set +e
 chroot "$SID_ROOT" /usr/bin/env -i HOME=/root LANG=C.UTF-8 TERM="${TERM:-dumb}" CI="${CI:-}" \
-  PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin PENUMBRA_SKIP_SID=1 \
+  PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin PENUMBRA_SKIP_SID=1 PENUMBRA_SKIP_PORTABLE=1 \
   PENUMBRA_SKIP_ASAN="$([ "${PENUMBRA_SID_ASAN:-0}" = 1 ] && echo 0 || echo 1)" \
   bash -c "cd $SRC && bash scripts/test.sh && echo '== $SUITE leg: the main job (scripts/bake_example.sh)' &&
            bash scripts/bake_example.sh /tmp/cornell"
