@@ -55,6 +55,7 @@ for f in "${present[@]}"; do
   printf '%s\n' "${interp[@]}" | grep -qxF "$f" || hidden+=("$f")
 done
 echo "of the system copies, $(( ${#present[@]} - ${#hidden[@]} )) stay visible because python3.11 and numpy map them before the import; ${#hidden[@]} are hidden"
+if [ "${PENUMBRA_PORTABLE_BAKE_ONLY:-0}" != 1 ]; then   # 1 skips 2 (about 3 min here) when 3 is what is wanted
 (
   hide "${hidden[@]}"
   in_root python3.11 "$CHECK/portable_check.py" "$CHECK/penumbra-addon-portable.zip"
@@ -65,16 +66,18 @@ echo "of the system copies, $(( ${#present[@]} - ${#hidden[@]} )) stay visible b
   for f in "${hidden[@]}"; do umount "$ROOT$f"; done
 )
 
+fi
 echo "== 3. a real headless bake: the zip installed in an empty user folder, the Cornell box baked"
-mapfile -t blender_needs < <(in_root /lib64/ld-linux-x86-64.so.2 --list /usr/bin/blender | awk '$2 == "=>" {print $1}')
+# The real files Blender's own closure maps (a soname and its file's name can differ: libopenjp2.so.7 is
+# libopenjp2.so.2.5.0).
+mapfile -t blender_needs < <(in_root /lib64/ld-linux-x86-64.so.2 --list /usr/bin/blender |
+  awk '$2 == "=>" {print $3}' | while read -r f; do in_root readlink -f "$f"; done | sort -u)
 keep=() drop=()
 for f in "${present[@]}"; do
-  # $f is the real file (libfoo.so.1.2.3); Blender's needs are sonames (libfoo.so.1)
-  needed=0 base=${f##*/}
-  for n in "${blender_needs[@]}"; do case "$base" in "$n"|"$n".*) needed=1; break ;; esac; done
-  if [ "$needed" = 1 ]; then keep+=("$f"); else drop+=("$f"); fi
+  # numpy's libraries too: Blender's Python imports it before the add-on
+  if printf '%s\n' "${blender_needs[@]}" "${interp[@]}" | grep -qxF "$f"; then keep+=("$f"); else drop+=("$f"); fi
 done
-echo "of the system copies, ${#keep[@]} stay visible because Blender itself links them; ${#drop[@]} are hidden"
+echo "Blender's own closure: ${#blender_needs[@]} files; of the system copies, ${#keep[@]} stay visible because Blender itself links them (or numpy maps them); ${#drop[@]} are hidden: ${drop[*]##*/}"
 hide "${drop[@]}"
 mkdir -p "$ROOT/tmp/user" "$ROOT/tmp/out"
 status=0
