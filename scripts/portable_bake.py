@@ -46,6 +46,6 @@ print("PORTABLE-BAKE " + json.dumps({
     "polygons": report.get("polygons"), "elements": report.get("elements"), "links": report.get("links"),
     "objects_baked": len(report.get("objects_baked", [])),
     "exr": sorted(os.path.basename(o["exr"]) for o in report["outputs"].values() if "exr" in o),
-    "vendored": len(vendored - {"NEEDS.txt"}), "mapped_from_zip": len(from_zip),
+    "vendored": len(vendored - {"NEEDS.txt"}), "mapped_from_zip": sorted(from_zip),
     "mapped_from_system": sorted(from_system)}), flush=True)
 print(penumbra.summary(report), flush=True)
