@@ -7,7 +7,8 @@ set -euo pipefail
 PKGS=(cmake g++ make pkg-config blender
       libfftw3-dev libopenimageio-dev libembree-dev libtbb-dev libgtest-dev
       pybind11-dev python3-dev python3-pybind11 python3-numpy python3-pytest python3-matplotlib
-      python3-openimageio xvfb xauth)
+      python3-openimageio xvfb xauth
+      patchelf)   # scripts/portable_zip.py: the relative run path of the vendored libraries
 OPTIONAL=()
 SUITE=unknown
 if [ -r /etc/os-release ]; then

@@ -186,3 +186,21 @@ def shown_socket(sockets, name):
         if s.name == name and getattr(s, "enabled", True):
             return s
     raise KeyError(name)
+
+
+def operator_call_without_update():
+    """A function (idname, props) that runs an operator without the view-layer update bpy.ops does before and
+    after each call, or None where Blender has no such entry point. Blender's private _bpy.ops.call takes
+    (idname, context_dict, props) in 3.x and (idname, props) from 4.0, which dropped context dicts (read in
+    the bpy/ops.py of 3.4.1 and 4.3.2; on 4.3 the 3.x call raised "argument 2 must be dict, not None").
+    5.x has no _bpy.ops.call at all (operators are C callables made by _bpy.ops.create_function)."""
+    try:
+        from _bpy import ops as native_ops
+    except ImportError:
+        return None
+    call = getattr(native_ops, "call", None)
+    if call is None:
+        return None
+    if VERSION >= (4, 0, 0):
+        return lambda idname, props: call(idname, props)
+    return lambda idname, props: call(idname, None, props)

@@ -159,14 +159,12 @@ def _call_op(idname, **props):
     """Run an operator without the view-layer update that bpy.ops does before and after every call. Each of
     those updates re-evaluates the whole scene once anything is tagged (a selection change is enough), so five
     operators per object made the unwrap of N objects cost N^2; the depsgraph is brought up to date once,
-    after the last object. Falls back to bpy.ops where Blender's private entry point is missing."""
-    try:
-        from _bpy import ops as native_ops
-        call = native_ops.call
-    except (ImportError, AttributeError):
+    after the last object. Falls back to bpy.ops where Blender's private entry point is missing (5.x)."""
+    call = compat.operator_call_without_update()
+    if call is None:
         module, name = idname.split(".")
         return getattr(getattr(bpy.ops, module), name)(**props)
-    return call(idname, None, props)
+    return call(idname, props)
 
 
 def _unwrap(ob, scene, view_layer, stand_in=False):

@@ -110,9 +110,10 @@ def test_office_matches_the_recorded_run():
         ref = want[name]
         assert got.shape == ref.shape, name
         scale = float(np.abs(ref).max())
-        # A value may also move by up to 1e-4 of the peak: in Debian sid (Embree 4.4, newer glibc) 9 of 65536
-        # lightmap texels differed by up to 3e-5 of the peak from the record, and on another AMD EPYC host 12 of
-        # 26865 radiance probes by 2e-5 of it, every count equal both times (a shadow ray grazing an edge).
+        # A lightmap texel or probe may also move by up to 1e-4 of the peak, with every count equal: in Debian sid
+        # (Embree 4.4, newer glibc) 9 of 65536 texels differed by up to 3e-5 of the peak from the record; in
+        # Debian 13 (Embree 4.3, glibc 2.41), and on this session's Debian 12 host too, 12 of 26865 probe values
+        # by up to 2.1e-5 of it (1.03e-4, peak 5).
         tol = np.maximum(RTOL * np.maximum(np.abs(ref), 1e-3 * scale), 1e-4 * scale)
         bad = np.abs(got - ref) > tol
         assert not bad.any(), (f"{name}: {int(bad.sum())} of {bad.size} values moved, the largest by "
