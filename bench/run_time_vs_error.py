@@ -166,9 +166,11 @@ def penumbra_maps(penumbra, receivers, report):
     return out
 
 
-def run_scene(penumbra, name, args):
+def run_scene(penumbra, name, args, penumbra_settings=None):
+    """Reference, Penumbra series and Cycles series of one scene; `penumbra_settings` replaces the
+    (epsilon, min_size) list (bench/lights_vs_cycles.py runs fewer)."""
     from penumbra.compare import cycles_lightmaps
-    res = RESOLUTION[name]
+    res = RESOLUTION.get(name, 128)
     receivers = prepare(name)
     ref_samples = 64 if args.quick else args.ref_samples
     a, b, ref_seconds = reference(name, receivers, res, ref_samples, args.cache)
@@ -178,7 +180,8 @@ def run_scene(penumbra, name, args):
     result = {"scene": name, "resolution": res, "receivers": receivers, "reference_samples": ref_samples,
               "reference_seconds": ref_seconds, "noise_face": scorer.noise_face, "noise_texel": scorer.noise_texel,
               "faces": scorer.faces, "texels": scorer.texels, "penumbra": [], "cycles": []}
-    settings = PENUMBRA_SETTINGS[::2] if args.quick else PENUMBRA_SETTINGS
+    settings = penumbra_settings or PENUMBRA_SETTINGS
+    settings = settings[::2] if args.quick else settings
     scene = bpy.context.scene
     methods = [(m, {**extra, **(json.loads(args.hybrid) if m == "hybrid" else {})})
                for m, extra in METHODS if m in args.methods.split(",")]
@@ -368,4 +371,6 @@ def main():
     log(f"benchmark took {time.perf_counter() - t0:.0f} s")
 
 
-main()
+# Under `blender --python` this file is __main__; bench/lights_vs_cycles.py imports it for its functions.
+if __name__ == "__main__":
+    main()

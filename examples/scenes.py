@@ -15,6 +15,11 @@
 - office5k: the same room at the size of that figure -- about 5,000 polygons, four rectangular area lights (one
   over each desk), four desks and chairs finely subdivided, the bookcase and two filing cabinets.
 - scalable: examples/scalable_scene.py, an open-plan office whose polygon count is a parameter (`polygons`).
+- window: issue 13's example, a closed 4 m x 4 m x 2.5 m room lit from outside only through a 1 m x 1 m window
+  with a cross-shaped frame: a SUN lamp (35 degrees up) whose patch falls on the floor and a box, a Sky Texture
+  world (sun disc off, its sun where the lamp is), and inside a POINT lamp with a 10 cm radius in a corner.
+- light_point, light_spot, light_sun, light_world, light_sky, light_area: one light type each (issue 13's
+  benchmark), over the same open scene: a 4 m x 4 m floor, a back wall and a box, which casts the shadow.
 
 Every object has its own materials, so a Cycles bake can take all objects in one call (one material's active
 image node is the bake target, and sharing it would make objects overwrite each other's lightmap).
@@ -29,7 +34,8 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cornell_box  # noqa: E402
 
-SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable")
+LIGHT_SCENES = ("light_point", "light_spot", "light_sun", "light_world", "light_sky", "light_area")
+SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable", "window") + LIGHT_SCENES
 
 
 def _diffuse(name, color):
@@ -245,6 +251,127 @@ def build_office5k(scene=None):
     return obs
 
 
+def _lamp(name, kind, location, toward=None, scene=None, **props):
+    """A light of `kind` at `location`, its local -Z (where Blender lights shine) along `toward` when given."""
+    from mathutils import Vector
+    light = bpy.data.lights.new(name, kind)
+    for k, v in props.items():
+        setattr(light, k, v)
+    ob = bpy.data.objects.new(name, light)
+    ob.location = location
+    if toward is not None:
+        ob.rotation_euler = Vector(toward).to_track_quat("-Z", "Y").to_euler()
+    (scene or bpy.context.scene).collection.objects.link(ob)
+    return ob
+
+
+def _sky_world(scene, strength, elevation, azimuth):
+    """A Sky Texture world (the running Blender's default sky type) without its sun disc: the disc is the SUN
+    lamp's job (with the disc on, the export takes it out of the map and sends a lamp of its own, which would
+    light the room twice). Its sun stands where `elevation` and `azimuth` (radians, azimuth from +x towards +y)
+    say, the lamp's direction: Cycles puts a Sky Texture's sun at (cos e sin r, cos e cos r, sin e) for
+    sun_rotation r (r turns clockwise from +y), so r = 90 degrees - azimuth (blender_tests/test_window_example.py
+    finds the disc in Cycles' render of this world)."""
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    nt = world.node_tree
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    if hasattr(sky, "sun_disc"):
+        sky.sun_disc = False
+    if hasattr(sky, "sun_elevation"):
+        sky.sun_elevation = elevation
+        sky.sun_rotation = math.pi / 2 - azimuth
+    nt.links.new(sky.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    nt.nodes["Background"].inputs["Strength"].default_value = strength
+    scene.world = world
+    return world
+
+
+# The window scene's sun: 35 degrees up, from +x turned 20 degrees towards +y; its patch through the window
+# (x = 2, y in [-0.5, 0.5], z in [1, 2]) falls on the floor around (0, -0.7) and on the box standing there.
+WINDOW_SUN_ELEVATION = math.radians(35.0)
+WINDOW_SUN_AZIMUTH = math.radians(20.0)
+
+
+def build_window(scene=None):
+    scene = scene or bpy.context.scene
+    W, H = 2.0, 2.5                       # the room spans x, y in [-W, W] and z in [0, H]
+    white, obs = (0.75, 0.75, 0.75), {}
+    room = MeshBuilder()
+    # Inward-facing floor, ceiling and three walls in 0.5 m faces.
+    room.grid((-W, -W, 0), (2 * W, 0, 0), (0, 2 * W, 0), 8, 8, 0)                 # floor, +z
+    room.grid((-W, -W, H), (0, 2 * W, 0), (2 * W, 0, 0), 8, 8, 1)                 # ceiling, -z
+    room.grid((-W, -W, 0), (0, 0, H), (2 * W, 0, 0), 5, 8, 2)                     # y = -W, +y
+    room.grid((W, W, 0), (0, 0, H), (-2 * W, 0, 0), 5, 8, 2)                      # y = +W, -y
+    room.grid((-W, W, 0), (0, 0, H), (0, -2 * W, 0), 5, 8, 2)                     # x = -W, +x
+    obs["Room"] = room.build("Room", [_diffuse("WindowFloor", (0.6, 0.45, 0.3)),
+                                      _diffuse("WindowCeiling", white),
+                                      _diffuse("WindowWalls", white)], scene)
+    # The window wall (x = +W, facing -x) in 0.25 m faces with the window's 4 x 4 faces left out.
+    wall = MeshBuilder()
+    verts, faces = cornell_box._grid((W, -W, 0), (0, 0, H), (0, 2 * W, 0), 10, 16,
+                                     skip=lambda i, j: 4 <= i < 8 and 6 <= j < 10)
+    verts, faces = cornell_box._compact(verts, faces)
+    wall.verts += [tuple(p) for p in verts]
+    wall.faces += faces
+    wall.mat_index += [0] * len(faces)
+    obs["WindowWall"] = wall.build("WindowWall", [_diffuse("WindowWallWhite", white)], scene)
+    # A cross-shaped frame in the opening (6 cm bars, 8 cm deep) and a box on the floor in the sun patch.
+    frame = MeshBuilder()
+    frame.box((W - 0.04, -0.03, 1.0), (W + 0.04, 0.03, 2.0))
+    frame.box((W - 0.04, -0.5, 1.47), (W + 0.04, -0.03, 1.53))
+    frame.box((W - 0.04, 0.03, 1.47), (W + 0.04, 0.5, 1.53))
+    obs["Frame"] = frame.build("Frame", [_diffuse("WindowFrame", (0.35, 0.35, 0.35))], scene)
+    box = MeshBuilder()
+    box.box((0.1, -1.2, 0.0), (0.6, -0.7, 0.5), bottom=False)
+    obs["Box"] = box.build("Box", [_diffuse("WindowBox", (0.2, 0.4, 0.7))], scene)
+    e, a = WINDOW_SUN_ELEVATION, WINDOW_SUN_AZIMUTH
+    to_sun = (math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e))
+    obs["Sun"] = _lamp("Sun", "SUN", (4.0, 1.5, 4.0), toward=tuple(-c for c in to_sun), scene=scene,
+                       energy=6.0, angle=math.radians(1.0), color=(1.0, 0.95, 0.85))
+    obs["Lamp"] = _lamp("Lamp", "POINT", (-1.5, 1.5, 1.9), scene=scene, energy=40.0, shadow_soft_size=0.1,
+                        color=(1.0, 0.8, 0.6))
+    _sky_world(scene, 0.3, e, a)
+    obs["Camera"] = _camera((-1.85, -1.85, 1.5), (80.0, 0.0, -50.0), 16.0, scene)
+    return obs
+
+
+def build_light(kind, scene=None):
+    """The light-type benchmark scene: a 4 m x 4 m floor (16 x 16 faces), a 4 m x 2 m back wall at y = 2 and a
+    0.6 m box, lit by one light of `kind` (point, spot, sun, world, sky or area) and nothing else."""
+    scene = scene or bpy.context.scene
+    obs = {"Floor": _floor(f"Floor_{kind}", scene)}
+    wall = MeshBuilder()
+    wall.grid((-2, 2, 0), (4, 0, 0), (0, 0, 2), 16, 8)                            # faces -y
+    obs["Wall"] = wall.build("Wall", [_diffuse(f"Wall_{kind}", (0.7, 0.6, 0.5))], scene)
+    box = MeshBuilder()
+    box.box((-0.5, -0.1, 0.0), (0.1, 0.5, 0.6), divisions=(2, 2, 2), bottom=False)
+    obs["Box"] = box.build("Box", [_diffuse(f"Box_{kind}", (0.3, 0.5, 0.7))], scene)
+    _black_world(scene)
+    if kind == "point":
+        obs["Light"] = _lamp("Light", "POINT", (0.6, -0.6, 1.8), scene=scene, energy=300.0, shadow_soft_size=0.1)
+    elif kind == "spot":
+        obs["Light"] = _lamp("Light", "SPOT", (1.2, -1.2, 2.2), toward=(-0.5, 0.5, -1.0), scene=scene,
+                             energy=600.0, shadow_soft_size=0.1, spot_size=math.radians(70.0), spot_blend=0.3)
+    elif kind == "sun":
+        obs["Light"] = _lamp("Light", "SUN", (0.0, 0.0, 4.0), toward=(-0.4, 0.5, -1.0), scene=scene,
+                             energy=3.0, angle=math.radians(3.0))
+    elif kind == "world":
+        w = scene.world
+        w.node_tree.nodes["Background"].inputs["Color"].default_value = (0.8, 0.9, 1.0, 1)
+        w.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+    elif kind == "sky":
+        # Its sun 35 degrees up towards -x, -y, on the open side facing the wall (sun_rotation -140 degrees,
+        # the sky docs/benchmark.md measured).
+        _sky_world(scene, 0.3, math.radians(35.0), math.radians(230.0))
+    elif kind == "area":
+        obs["Light"] = _area_light("Light", 1.0, 400.0, (0.6, -0.6, 2.0), scene=scene)
+    else:
+        raise ValueError(f"unknown light kind {kind!r}")
+    obs["Camera"] = _camera((0.0, -5.2, 3.6), (55.0, 0.0, 0.0), 32.0, scene)
+    return obs
+
+
 def build(name, scene=None, polygons=5000):
     """Build a scene into the current (empty) file; returns {name: object}. `polygons` sizes "scalable"."""
     if name == "cornell":
@@ -260,6 +387,10 @@ def build(name, scene=None, polygons=5000):
         return build_blockers(scene)
     if name == "lattice":
         return build_lattice(scene)
+    if name == "window":
+        return build_window(scene)
+    if name in LIGHT_SCENES:
+        return build_light(name[len("light_"):], scene)
     raise ValueError(f"unknown scene {name!r}; known: {', '.join(SCENES)}")
 
 

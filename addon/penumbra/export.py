@@ -19,7 +19,7 @@ PREVIEW_STATE = "penumbra_preview"     # preview.STATE (preview imports writebac
 EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two-sided); the solver gives such a
                    # face a back twin that receives and reflects too, which is how two-sided objects are sent
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
-NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: point, spot and sun lamps shine through it
+NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: shadow rays to lamps, area lights and emitters pass it
 
 DISK_SECTORS = 32
 # A quad is sent as one polygon only if it is flat and convex: the solver subdivides it as a planar
@@ -528,8 +528,9 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
             shadow, diffuse = compat.ray_visibility(ob_eval.original)
             if not shadow:
                 fl |= NO_LAMP_SHADOW
-                res.notes.append(f"object '{name}': hidden from shadow rays, so point, spot and sun lamps shine "
-                                 f"through it; the world, area lights and emitting meshes are still blocked by it")
+                res.notes.append(f"object '{name}': hidden from shadow rays, so lamps, area lights and emitting "
+                                 f"meshes shine through it onto the lightmaps; the world is still blocked by it, "
+                                 f"and the light bounced on from what it shades is as if it blocked")
             if not diffuse:
                 res.warnings.append(f"object '{name}': Ray Visibility > Diffuse off is not supported yet: it still "
                                     f"reflects light onto others and blocks their light")

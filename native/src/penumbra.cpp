@@ -184,7 +184,17 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
             std::sort(v.begin(), v.end());
             v.erase(std::unique(v.begin(), v.end()), v.end());
         }
-        auto direct = std::make_shared<DirectLight>(scene, rays, settings.gatherRays, std::move(excluded));
+        // With gather_rays = 0 the gather takes each leaf's visibility from its links, whose rays meet
+        // every polygon; an object hidden from shadow rays (kNoLampShadow) must let the emitters' light
+        // through, so then the gather casts its own shadow rays (light_rays of them, as the lamps do).
+        int gatherRays = settings.gatherRays;
+        if (gatherRays == 0)
+            for (const ScenePolygon& p : scene.polygons)
+                if (!p.blocksLamps) {
+                    gatherRays = settings.lightRays;
+                    break;
+                }
+        auto direct = std::make_shared<DirectLight>(scene, rays, gatherRays, std::move(excluded));
         std::vector<Rgb> shadowed, unoccluded;
         solver.directIrradiance(links, shadowed, unoccluded);
         std::vector<Rgb> reflected = conv.empty() ? std::vector<Rgb>{} : textures.reflected(h, conv);

@@ -14,8 +14,8 @@ namespace {
 using testing::TestScene;
 
 // A 1 x 1 lamp facing down at height 1 over a 4 x 4 floor, and optionally an opaque card just under
-// the lamp hiding its x < cut part from everything below.
-TestScene lampOverFloor(double rho, bool card, double cut = 0.3) {
+// the lamp hiding its x < cut part from everything below; `cardFlag` goes to the card's faces.
+TestScene lampOverFloor(double rho, bool card, double cut = 0.3, uint8_t cardFlag = 0) {
     TestScene t;
     t.names = {"Floor", "Lamp", "Card"};
     t.quad({-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, {rho, rho, rho}, {}, 0, 0);
@@ -23,8 +23,8 @@ TestScene lampOverFloor(double rho, bool card, double cut = 0.3) {
     if (card) {
         double z = 0.99;
         // Both sides, so it blocks whichever way it is seen and reflects nothing (albedo 0).
-        t.quad({-0.6, -0.6, z}, {-0.6, 0.6, z}, {cut, 0.6, z}, {cut, -0.6, z}, {}, {}, 0, 2);
-        t.quad({-0.6, -0.6, z}, {cut, -0.6, z}, {cut, 0.6, z}, {-0.6, 0.6, z}, {}, {}, 0, 2);
+        t.quad({-0.6, -0.6, z}, {-0.6, 0.6, z}, {cut, 0.6, z}, {cut, -0.6, z}, {}, {}, cardFlag, 2);
+        t.quad({-0.6, -0.6, z}, {cut, -0.6, z}, {cut, 0.6, z}, {-0.6, 0.6, z}, {}, {}, cardFlag, 2);
     }
     return t;
 }
@@ -87,6 +87,24 @@ TEST(FinalGather, HalfHiddenLampSeesItsVisiblePart) {
         Rgb H = direct.irradiance(p - off, {0, 0, 1}, 0);
         double full = pointToPolygonFormFactor(p, {0, 0, 1}, lampPart(-0.5, 0.5));
         EXPECT_NEAR(H.x / E, expect, 0.02 * full) << "x = " << x;
+    }
+}
+
+// A card hiding the whole lamp from the floor's middle: in shadow as it is, but hidden from shadow rays
+// (Ray Visibility > Shadow off, kNoLampShadow) it lets the final gather's rays through, and the floor
+// gets the bare lamp's light exactly (the card reflects nothing, so nothing else reaches the floor).
+TEST(FinalGather, CardHiddenFromShadowRaysLetsTheLampThrough) {
+    const double rho = 0.5, E = 10;
+    for (uint8_t flag : {uint8_t(0), uint8_t(kNoLampShadow)}) {
+        TestScene t = lampOverFloor(rho, true, 0.6, flag);
+        auto sol = solve(t.input(), Settings{}, nullptr);
+        for (double x : {-0.3, 0.0, 0.25})
+            for (double y : {-0.2, 0.1}) {
+                float pt[3] = {float(x), float(y), 0}, nrm[3] = {0, 0, 1};
+                double L = sol->radiance(pt, nrm, 1)[0];
+                double bare = rho * E * pointToPolygonFormFactor({pt[0], pt[1], 0}, {0, 0, 1}, lampPart(-0.5, 0.5)) / M_PI;
+                EXPECT_NEAR(L, flag ? bare : 0.0, 1e-3 * bare) << "flag " << int(flag) << " at " << x << ", " << y;
+            }
     }
 }
 

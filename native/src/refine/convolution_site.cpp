@@ -334,6 +334,9 @@ ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
             std::binary_search(site.faces.begin(), site.faces.end(), q))
             continue;
         const ScenePolygon& qp = sc.polygons[size_t(q)];
+        // Hidden from shadow rays (kNoLampShadow): the emitter's light passes it, as the final gather's
+        // rays do where no texture is made, so it casts no shadow into the texture either.
+        if (!qp.blocksLamps) continue;
         Bounds qb = shrunk(polygonBox(qp), tol_);
         if (shaft.classify(qb) == Shaft::Outside) continue;
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.

@@ -18,7 +18,7 @@ enum class Card { None, Floating, Resting, Post };
 
 // Polygon 0: a 2 x 2 floor at z = 0. Polygon 1: a 0.5 x 0.5 lamp at z = 1 facing down, light-only.
 // Polygons 2...: the card.
-TestScene floorUnderLamp(Card card) {
+TestScene floorUnderLamp(Card card, uint8_t cardFlag = 0) {
     TestScene t;
     t.names = {"Floor", "Lamp", "Card"};
     t.quad({-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, {0.5, 0.5, 0.5}, {}, 0, 0);
@@ -28,7 +28,7 @@ TestScene floorUnderLamp(Card card) {
     switch (card) {
     case Card::None: break;
     case Card::Floating:  // 0.4 x 0.4, halfway up, touching nothing
-        t.quad({-0.2, -0.2, 0.5}, {0.2, -0.2, 0.5}, {0.2, 0.2, 0.5}, {-0.2, 0.2, 0.5}, grey, {}, 0, 2);
+        t.quad({-0.2, -0.2, 0.5}, {0.2, -0.2, 0.5}, {0.2, 0.2, 0.5}, {-0.2, 0.2, 0.5}, grey, {}, cardFlag, 2);
         break;
     case Card::Resting:  // a box standing on the floor: its contact shadow has no width
         t.box({-0.2, -0.2, 0}, {0.2, 0.2, 0.4}, grey, {}, false, 2);
@@ -99,6 +99,16 @@ TEST(ConvolutionSites, NothingInTheShaftIsRefusedAsNoBlocker) {
     EXPECT_EQ(s.count("convolution_tried"), 1u);
     EXPECT_EQ(s.count("convolution_refused/no_blocker"), 1u);
     EXPECT_EQ(s.refused(), 1u);
+}
+
+// The same card hidden from shadow rays (kNoLampShadow): the lamp's light passes it, so it is no blocker,
+// and with nothing else in the shaft the pair is refused (the final gather's rays then let the light by).
+TEST(ConvolutionSites, ACardHiddenFromShadowRaysIsNoBlocker) {
+    Sites s(floorUnderLamp(Card::Floating, kNoLampShadow));
+    EXPECT_FALSE(s.sites->wouldLink(0, 1));  // answers as tryLink does
+    ConvolutionLink l;
+    EXPECT_FALSE(s.sites->tryLink(0, 1, l));
+    EXPECT_EQ(s.count("convolution_refused/no_blocker"), 1u);
 }
 
 TEST(ConvolutionSites, ABoxRestingOnTheFloorTakesContactSubBlockers) {

@@ -13,9 +13,10 @@ namespace penumbra {
 enum PolygonFlags : uint8_t {
     kEmitBack = 1,   // emits B_e from the back side too (Cycles mesh emitters are two-sided)
     kLightOnly = 2,  // a lamp: emits, but neither receives, reflects nor blocks
-    // Blender's Ray Visibility > Shadow off: the lamps' shadow rays (point, spot, sun) pass through it.
-    // The world, area lights and emitting faces still see it as a blocker (their light travels on the
-    // hierarchy's links, which carry reflected light too, and Cycles' diffuse rays still meet it).
+    // Blender's Ray Visibility > Shadow off: shadow rays pass through it: the lamps' (point, spot, sun)
+    // and the final gather's to area lights and emitting faces. The world's rays and the hierarchy's
+    // links (which carry the reflected light too, and the direct light only into the bounce) still
+    // see it as a blocker: Cycles' diffuse rays meet it.
     kNoLampShadow = 4,
 };
 
