@@ -300,33 +300,7 @@ def test_array_copies_preview_renders_each_copys_light(empty_scene, penumbra, tm
     penumbra.bake(empty_scene, **BAKE_COPIES)
     copies, _ = _copy_means(tile)
     assert penumbra.preview(empty_scene, True)
-    cam = bpy.data.cameras.new("Top")
-    cam.type = "ORTHO"
-    cam.ortho_scale = 2.4
-    cam_ob = bpy.data.objects.new("Top", cam)
-    cam_ob.location = (0.3, 0.0, 2.0)
-    empty_scene.collection.objects.link(cam_ob)
-    empty_scene.camera = cam_ob
-    r = empty_scene.render
-    r.engine = "CYCLES"
-    r.resolution_x, r.resolution_y, r.resolution_percentage = 96, 24, 100
-    empty_scene.cycles.samples = 4
-    empty_scene.cycles.use_denoising = False
-    r.filepath = str(tmp_path / "top.exr")
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
-    bpy.ops.render.render(write_still=True)
-    img = bpy.data.images.load(str(tmp_path / "top.exr"))
-    px = helpers.image_pixels(img)[..., :3].mean(axis=2)         # (24, 96), row 0 at the bottom
-    # Pixel centres in world x, y: the camera spans 2.4 m in x and 0.6 m in y around (0.3, 0).
-    xs = 0.3 + ((np.arange(96) + 0.5) / 96 - 0.5) * 2.4
-    ys = ((np.arange(24) + 0.5) / 24 - 0.5) * 0.6
-    seen = []
-    for k in range(4):
-        cx = -0.6 + 0.6 * k
-        inner = (np.abs(xs - cx) < 0.08)[None, :] & (np.abs(ys) < 0.08)[:, None]
-        seen.append(float(px[inner].mean()))
-    seen = np.array(seen)
+    seen = _top_view(empty_scene, tmp_path, [-0.6 + 0.6 * k for k in range(4)])
     print(f"preview render over the copies {np.round(seen, 5)}, their texels {np.round(copies, 5)}")
     # A render of an emission of the lightmap: its pixels over a tile are that tile's texels (the inner
     # 80 %, without the tile's edges, which blend with the floor); measured within 0.5 % (4 samples), 3 % allowed.

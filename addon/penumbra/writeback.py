@@ -1116,6 +1116,15 @@ def write_all(scene, view_layer, object_names, solution, native, settings, repor
                           frozenset(instance_only))
 
 
+def _evaluated_depsgraph(scene, view_layer):
+    """The scene's depsgraph with its evaluated objects up to date: the unwrap and Cycles' albedo bake change
+    the scene, after which objects evaluated before are stale."""
+    if bpy.context.scene == scene:
+        return bpy.context.evaluated_depsgraph_get()
+    view_layer.update()
+    return view_layer.depsgraph
+
+
 def _write_all(scene, view_layer, object_names, solution, native, settings, report, progress, before_commit,
                black, two_sided=frozenset(), instances=None, instance_only=frozenset()):
     """Unwrap, rasterise and store every baked object; all or nothing, on disk too: lightmap files are
@@ -1145,11 +1154,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
             objs.setdefault(o.name, o)
         uv = prepare_uvs([objs[n] for n in object_names], scene, view_layer,
                          settings.get("uv_map"), tx)
-        if bpy.context.scene == scene:
-            dg = bpy.context.evaluated_depsgraph_get()
-        else:
-            view_layer.update()
-            dg = view_layer.depsgraph
+        dg = _evaluated_depsgraph(scene, view_layer)
         baked = []
         for name in object_names:
             ob = objs[name]
@@ -1183,11 +1188,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                     detach_copies(objs[name], tx)
         if copies:
             # The unwrap linked and unlinked an object: the evaluated objects are taken anew.
-            if bpy.context.scene == scene:
-                dg = bpy.context.evaluated_depsgraph_get()
-            else:
-                view_layer.update()
-                dg = view_layer.depsgraph
+            dg = _evaluated_depsgraph(scene, view_layer)
         tiled = set(instances or {}) if "LIGHTMAP" in settings["targets"] else set()
         albedo_maps = _albedo_maps(scene, view_layer, [n for n in baked if n not in copies and n not in tiled], uv,
                                    settings, report, objs)
@@ -1200,11 +1201,7 @@ def _write_all(scene, view_layer, object_names, solution, native, settings, repo
                                           f"uses the material's mean albedo")
         if albedo_maps:
             # The bake operator re-evaluated the scene; the depsgraph's evaluated objects are taken anew.
-            if bpy.context.scene == scene:
-                dg = bpy.context.evaluated_depsgraph_get()
-            else:
-                view_layer.update()
-                dg = view_layer.depsgraph
+            dg = _evaluated_depsgraph(scene, view_layer)
         outputs.update(write_objects(objs, baked, solution, native, dg, uv, settings, tx, report, files, black=black,
                                      albedo_maps=albedo_maps, progress=progress, copies=copies,
                                      two_sided=two_sided, instances=instances, instance_only=instance_only))
