@@ -20,6 +20,8 @@ PENUMBRA_COUNTER(kRays, "rays");                 // visibility rays cast
 constexpr double kRaysPerShare = 16;
 constexpr int kMaxBatches = 16;
 
+PENUMBRA_COUNTER(kRaysBatched, "rays_batched");  // of which: in rounds, for partly seen links at min_size
+PENUMBRA_COUNTER(kRaysCluster, "rays_cluster");  // of which: for links with a cluster at either end
 PENUMBRA_COUNTER(kShaftsClear, "shafts_clear");  // links found fully visible by shaft culling, no rays cast
 
 // Deterministic per-link random numbers: the sample pattern of a link depends only on the identity
@@ -71,6 +73,14 @@ Vec3 nearestPoint(const Element& e, const Vec3& x) {
     // Off the edge it may share with the source, where the source is seen edge-on (form factor 0)
     // though a hair inside it fills half the view.
     return e.pointAt(cs + (0.5 - cs) / 32, ct + (0.5 - ct) / 32);
+}
+
+// The plane of an element's polygon moved down to its lowest vertex (a warped quad's corners stray from
+// the polygon's plane): points of the element lie on or in front of it.
+RayCaster::HalfSpace lowestPlane(const Element& e, const Vec3& n) {
+    double lo = 0;
+    for (int k = 1; k < e.n; ++k) lo = std::min(lo, dot(e.v[k] - e.v[0], n));
+    return {e.v[0] + n * lo, n};
 }
 
 }  // namespace
@@ -193,7 +203,10 @@ double Refiner::sourceDeviationError(const Link& l) const {
     Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
     for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
     for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
-    return rays_.shaftIsClear(rb, sb, r.polygon, s.polygon) ? 0.0 : e;
+    const Scene& sc = h_.scene();
+    RayCaster::HalfSpace planes[2] = {lowestPlane(r, sc.polygons[r.polygon].normal),
+                                      lowestPlane(s, sc.polygons[s.polygon].normal)};
+    return rays_.shaftIsClear(rb, sb, r.polygon, s.polygon, planes, 2, 0.5 * lift_) ? 0.0 : e;
 }
 
 bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
@@ -285,7 +298,11 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
     for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
     for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
-    if (rays_.shaftIsClear(rb, sb, r.polygon, s.polygon)) {
+    // The rays that count start lift_ in front of the receiver and end lift_ in front of the source
+    // (see below), so nothing lying in or behind either plane can block them.
+    RayCaster::HalfSpace planes[2] = {lowestPlane(r, sc.polygons[r.polygon].normal),
+                                      lowestPlane(s, sc.polygons[s.polygon].normal)};
+    if (rays_.shaftIsClear(rb, sb, r.polygon, s.polygon, planes, 2, 0.5 * lift_)) {
         counters_.add(kShaftsClear);
         l.V = 1;
         l.F = l.Fmean;
@@ -334,6 +351,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
         char vis[256];
         rays_.visiblePairs(from, to, n, vis);
         counters_.add(kRays, size_t(n));
+        if (batches > 0) counters_.add(kRaysBatched, size_t(n));
         for (int i = 0; i < n; ++i) {
             Vec3 d = to[i] - from[i];
             double len = length(d);
@@ -588,6 +606,7 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
     } else {
         l.V = float(rays_.unoccludedFraction(from, to, n));
         counters_.add(kRays, size_t(n));
+        counters_.add(kRaysCluster, size_t(n));
     }
     return true;
 }

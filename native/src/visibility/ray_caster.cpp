@@ -79,13 +79,28 @@ RayCaster::~RayCaster() {
 }
 
 bool RayCaster::shaftIsClear(const Bounds& a, const Bounds& b, int skipA, int skipB) const {
+    return shaftIsClear(a, b, skipA, skipB, nullptr, 0, 0.0);
+}
+
+bool RayCaster::shaftIsClear(const Bounds& a, const Bounds& b, int skipA, int skipB, const HalfSpace* above,
+                             int numAbove, double height) const {
     Shaft shaft(a, b);
+    auto below = [&](const Bounds& box) {
+        for (int k = 0; k < numAbove; ++k) {
+            const Vec3& n = above[k].normal;
+            // The box corner farthest along the normal.
+            Vec3 far{n.x > 0 ? box.hi.x : box.lo.x, n.y > 0 ? box.hi.y : box.lo.y, n.z > 0 ? box.hi.z : box.lo.z};
+            if (dot(n, far - above[k].point) < height) return true;
+        }
+        return false;
+    };
     bool clear = true;
     occluders_.query(
-        [&](const Bounds& node) { return clear && shaft.classify(node) != Shaft::Outside; },
+        [&](const Bounds& node) { return clear && shaft.classify(node) != Shaft::Outside && !below(node); },
         [&](int i) {
             int p = occluderPolygon_[i];
-            if (clear && p != skipA && p != skipB && shaft.classify(occluders_.box(i)) != Shaft::Outside)
+            if (clear && p != skipA && p != skipB && shaft.classify(occluders_.box(i)) != Shaft::Outside &&
+                !below(occluders_.box(i)))
                 clear = false;
         });
     return clear;

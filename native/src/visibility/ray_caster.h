@@ -34,6 +34,14 @@ public:
     // True when no occluding polygon other than the two named ones can cross the shaft between the
     // boxes (Haines-Wallace): every segment between them is then unblocked without casting a ray.
     bool shaftIsClear(const Bounds& a, const Bounds& b, int skipPolygonA, int skipPolygonB) const;
+    // The same, for segments known to stay at least `height` in front of each of the planes (point, unit
+    // normal) given: a polygon whose box lies within `height` of a plane's front or behind it cannot
+    // cross them. A receiver's coplanar neighbours on a meshed floor touch every shaft leaving it.
+    struct HalfSpace {
+        Vec3 point, normal;
+    };
+    bool shaftIsClear(const Bounds& a, const Bounds& b, int skipPolygonA, int skipPolygonB,
+                      const HalfSpace* above, int numAbove, double height) const;
 
     // Per polygon: its front lies inside a solid (a desk leg's top flush under the desk, a box's bottom on
     // the floor): the first surface that a ray off it meets, from its centre and up to four inner points,

@@ -75,5 +75,45 @@ TEST(RayCaster, ClusterLinksLeaveBuriedFacesDark) {
     EXPECT_EQ(h[size_t(boxBottom)].B.x, 0.0);
 }
 
+TEST(RayCaster, ShaftOffATiledFloorIgnoresTheFloorButNotWhatStandsOnIt) {
+    // A floor of 4 x 4 tiles and a lamp above it: the padded shaft from one floor tile touches its
+    // coplanar neighbours, which no ray leaving the tile's front can cross. With the floor's and the
+    // lamp's planes given, the shaft is clear; a box standing on the floor inside it still blocks.
+    testing::TestScene t;
+    t.names = {"Floor", "Ceiling", "Box"};
+    Rgb white{0.7, 0.7, 0.7};
+    grid(t, {-2, -2, 0}, {4, 0, 0}, {0, 4, 0}, 4, white, 0);
+    int ceiling = int(t.polygons.size() / 4);
+    t.quad({-0.5, -0.5, 3}, {-0.5, 0.5, 3}, {0.5, 0.5, 3}, {0.5, -0.5, 3}, {}, {10, 10, 10}, kLightOnly, 1);
+    Scene sc = buildScene(t.input());
+    RayCaster rays(sc);
+    double lift = 1e-5 * sc.diagonal, pad = 2 * lift;
+    int tile = 5;  // x in [-1, 0], y in [-1, 0]: an inner tile with neighbours on every side
+    // The scene is moved to its centre when built: boxes and planes come from its own vertices.
+    auto padded = [&](int p) {
+        Bounds box;
+        for (int k = 0; k < sc.polygons[p].geom.n; ++k) {
+            box.extend(sc.polygons[p].geom.v[k] - Vec3{pad, pad, pad});
+            box.extend(sc.polygons[p].geom.v[k] + Vec3{pad, pad, pad});
+        }
+        return box;
+    };
+    Bounds a = padded(tile), b = padded(ceiling);
+    RayCaster::HalfSpace planes[2] = {{sc.polygons[tile].geom.v[0], {0, 0, 1}},
+                                      {sc.polygons[ceiling].geom.v[0], {0, 0, -1}}};
+    EXPECT_FALSE(rays.shaftIsClear(a, b, tile, ceiling));
+    EXPECT_TRUE(rays.shaftIsClear(a, b, tile, ceiling, planes, 2, 0.5 * lift));
+    // Only what lies within the height of a plane's front is ignored: with the plane given one lift
+    // below the floor, the neighbouring tiles count again.
+    RayCaster::HalfSpace raised[2] = {{planes[0].point - Vec3{0, 0, lift}, {0, 0, 1}}, planes[1]};
+    EXPECT_FALSE(rays.shaftIsClear(a, b, tile, ceiling, raised, 2, 0.5 * lift));
+
+    // Inside the room's box, so the built scene is moved by the same offset and a, b still fit it.
+    t.box({-0.6, -0.6, 0.0}, {-0.4, -0.4, 0.5}, white, {}, false, 2);
+    Scene withBox = buildScene(t.input());
+    RayCaster blocked(withBox);
+    EXPECT_FALSE(blocked.shaftIsClear(a, b, tile, ceiling, planes, 2, 0.5 * lift));
+}
+
 }  // namespace
 }  // namespace penumbra
