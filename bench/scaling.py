@@ -62,6 +62,12 @@ def parse_args(argv=None):
     ap.add_argument("--json", default=os.path.join(REPO, "docs", "scaling_results.json"))
     ap.add_argument("--plot", default=os.path.join(REPO, "docs", "bench_scaling.png"))
     ap.add_argument("--no-skip", action="store_true", help="run the larger sizes after a timeout too")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="what the fit and the plot use: the solver's own wall clock, or the CPU seconds of the "
+                         "solve call (all threads; steadier on a machine other jobs load)")
+    ap.add_argument("--include", default=None,
+                    help="a JSON file of an earlier run whose solved sizes (not run again here) join the table, fit "
+                         "and plot, marked as included (e.g. docs/scaling_results_200k.json)")
     ap.add_argument("--worker", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     try:
@@ -143,6 +149,7 @@ def worker(args):
         return True
 
     t1 = time.perf_counter()
+    c1 = time.process_time()     # every thread of this process: the solver's CPU whatever else loads the machine
     try:
         sol = _native.solve(**scene, settings=settings, progress=progress)
     except _native.BudgetExceeded as e:
@@ -155,6 +162,7 @@ def worker(args):
         rep = sol.report
         times = {k: float(v) for k, v in rep["times"].items()}
         result.update(status="solved", wall_seconds=time.perf_counter() - t1, times=times,
+                      solve_cpu_seconds=time.process_time() - c1,
                       total_seconds=times.get("total", sum(times.values())),
                       **{k: rep[k] for k in ("elements", "leaves", "links", "rays", "shafts_clear", "iterations",
                                              "residual", "converged", "refine_passes", "warnings")
@@ -268,9 +276,17 @@ def run_size(args, n, skip_reason=None):
     return row
 
 
-def fit_exponent(rows, fit_from):
-    pts = [(r["polygons"], r["total_seconds"]) for r in rows
-           if r["status"] == "solved" and r["polygons"] >= fit_from and r["total_seconds"] > 0]
+def seconds(row, clock):
+    """The row's solve time on the chosen clock. Rows from runs before solve_cpu_seconds was kept fall back on
+    the whole worker's CPU (scene build and import included: small beside a large solve)."""
+    if clock == "cpu":
+        return row.get("solve_cpu_seconds", row.get("cpu_seconds", 0.0))
+    return row["total_seconds"]
+
+
+def fit_exponent(rows, fit_from, clock="wall"):
+    pts = [(r["polygons"], seconds(r, clock)) for r in rows
+           if r["status"] == "solved" and r["polygons"] >= fit_from and seconds(r, clock) > 0]
     if len(pts) < 2:
         return None
     xs = [math.log(p) for p, _ in pts]
@@ -301,20 +317,23 @@ def _si(x):
 
 def markdown_table(rows, fit, fit_from):
     stages = stage_names(rows)
-    head = ["target", "polygons", "status", "total s"] + [f"{s} s" for s in stages] + \
+    head = ["target", "polygons", "status", "total s", "solve CPU s"] + [f"{s} s" for s in stages] + \
            ["elements", "links", "rays", "peak MiB", "solve MiB", "min elem m", "other cores"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         if r["status"] == "solved":
-            cells = [f"{r['total_seconds']:.2f}"] + [f"{r['times'].get(s, 0.0):.2f}" for s in stages] + \
+            cpu = r.get("solve_cpu_seconds", r.get("cpu_seconds"))
+            cells = [f"{r['total_seconds']:.2f}", f"{cpu:.1f}" if cpu is not None else "—"] + \
+                    [f"{r['times'].get(s, 0.0):.2f}" for s in stages] + \
                     [_si(r["elements"]), _si(r["links"]), _si(r["rays"])]
         else:
-            cells = ["—"] * (1 + len(stages) + 3)
+            cells = ["—"] * (2 + len(stages) + 3)
         peak = f"{r['peak_mib']:.0f}" if "peak_mib" in r else "—"
         grown = f"{r['solve_mib']:.0f}" if "solve_mib" in r else "—"
         mins = f"{r['min_size_m']:.3f}" if "min_size_m" in r else "—"
         load = f"{r['other_cores']:.2f}" if "other_cores" in r else "—"
-        lines.append("| " + " | ".join([_si(r["target"]), str(r.get("polygons", "—")), r["status"]] + cells +
+        status = r["status"] + (" (included)" if r.get("included") else "")
+        lines.append("| " + " | ".join([_si(r["target"]), str(r.get("polygons", "—")), status] + cells +
                                        [peak, grown, mins, load]) + " |")
     notes = [f"- {_si(r['target'])}: {r['status']}: {r['message']}" for r in rows if r.get("message")]
     if fit:
@@ -325,7 +344,7 @@ def markdown_table(rows, fit, fit_from):
     return "\n".join(lines + ([""] + notes if notes else []))
 
 
-def plot(rows, fit, path, title):
+def plot(rows, fit, path, title, clock="wall"):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -335,8 +354,12 @@ def plot(rows, fit, path, title):
     xs_all = [r["polygons"] for r in rows] + [TARGET_POLYGONS]
     x_lo, x_hi = min(xs_all) / 1.5, max(xs_all) * 1.5
     if solved:
-        ax.loglog([r["polygons"] for r in solved], [r["total_seconds"] for r in solved], "o-", color="C0",
-                  label="solve time (report['times'] total)")
+        ax.loglog([r["polygons"] for r in solved], [seconds(r, clock) for r in solved], "o-", color="C0",
+                  label="solve time (report['times'] total)" if clock == "wall" else "solve CPU seconds (all threads)")
+        inc = [r for r in solved if r.get("included")]
+        if inc:
+            ax.loglog([r["polygons"] for r in inc], [seconds(r, clock) for r in inc], "s", color="C0",
+                      markerfacecolor="none", markersize=12, label="from an earlier run (--include)")
     timeouts = [r for r in rows if r["status"] == "timeout"]
     if timeouts:
         ax.loglog([r["polygons"] for r in timeouts], [r["process_seconds"] for r in timeouts], "^", color="C3",
@@ -358,7 +381,7 @@ def plot(rows, fit, path, title):
                     color="C3" if r["status"] != "skipped" else "0.5")
     ax.set_xlim(x_lo, x_hi)
     ax.set_xlabel("polygons")
-    ax.set_ylabel("seconds")
+    ax.set_ylabel("seconds" if clock == "wall" else "CPU seconds (all threads)")
     ax.set_title("solve time")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8, loc="lower right")
@@ -411,11 +434,20 @@ def main():
               file=sys.stderr, flush=True)
         if row["status"] == "timeout" and not args.no_skip:
             skip = f"not run: {n} polygons timed out (--no-skip runs it anyway)"
-    fit = fit_exponent(rows, args.fit_from)
+    if args.include:
+        with open(args.include) as f:
+            earlier = json.load(f)
+        have = {r["target"] for r in rows}
+        for r in earlier.get("runs", []):
+            if r.get("status") == "solved" and r["target"] not in have:
+                rows.append(dict(r, included=os.path.basename(args.include)))
+        rows.sort(key=lambda r: r["target"])
+    fit = fit_exponent(rows, args.fit_from, args.clock)
     commit, dirty = git_describe()
     meta = {"date": datetime.datetime.now().isoformat(timespec="seconds"), "label": args.label,
             "commit": commit, "dirty": dirty, "module": _native.__file__, "build": args.build,
             "settings": args.settings, "min_size_m": args.min_size_m, "timeout": args.timeout,
+            "clock": args.clock, "include": args.include,
             "seed": args.seed, "cpus": os.cpu_count(), "machine": platform.platform(),
             "python": platform.python_version(),
             "target": {"polygons": TARGET_POLYGONS, "seconds": TARGET_SECONDS, "exponent": TARGET_EXPONENT}}
@@ -430,7 +462,7 @@ def main():
                 f"\nsettings {json.dumps(args.settings)}" + \
                 (f", min size {args.min_size_m} m" if args.min_size_m is not None else ", default min_size") + \
                 f", {os.cpu_count()} cores, commit {commit[:8] if commit else '?'}{' (dirty)' if dirty else ''}"
-        plot(rows, fit, args.plot, title)
+        plot(rows, fit, args.plot, title, args.clock)
     return 0
 
 
