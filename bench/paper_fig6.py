@@ -68,6 +68,8 @@ def main():
     ap.add_argument("--object", default="Floor")
     ap.add_argument("--method", default="contact", help="the convolution series to compare with standard")
     ap.add_argument("--png", default=None)
+    ap.add_argument("--epsilon", type=float, default=None, help="the convolution bake the PNG shows (default: "
+                                                                 "the first)")
     ap.add_argument("--cache", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "cache"),
                     help="run_time_vs_error's reference cache, whose two halves give the reference's noise")
     a = ap.parse_args()
@@ -130,7 +132,7 @@ def main():
         conv = [x for x in rows if x["method"] == a.method]
         if not conv or not std:
             return
-        c = conv[0]
+        c = next((x for x in conv if a.epsilon is not None and math.isclose(x["epsilon"], a.epsilon)), conv[0])
         s = min(std, key=lambda x: abs(math.log(x["cpu_seconds"] / c["cpu_seconds"])))
         R = ref[a.object][..., :3]
         scale = np.percentile(R[R.sum(-1) > 0], 99)
@@ -147,7 +149,8 @@ def main():
             ax.imshow(img, origin="lower")
             ax.set_title(title, fontsize=9)
         for ax, x in zip(axes[3:], (c, s)):
-            d = (x["maps"][a.object][..., :3].mean(-1) - R.mean(-1)) / scale
+            d = np.where(inside(ref[a.object]), (x["maps"][a.object][..., :3].mean(-1) - R.mean(-1)) / scale,
+                         np.nan)
             im = ax.imshow(d, origin="lower", cmap="RdBu_r", vmin=-0.15, vmax=0.15)
             ax.set_title(f"{x['label']} − reference\n(fraction of the 99th percentile)", fontsize=9)
         fig.colorbar(im, ax=axes[4], fraction=0.046)
