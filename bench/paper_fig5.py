@@ -90,8 +90,10 @@ def texture_share(scene, flux, lamps, links):
                 covered[link["receiver_polygons"], col[int(s)]] = True
     obj = scene["object_index"]
     out = {}
-    for name in RECEIVERS + ("all",):
-        rows = obj >= 0 if name == "all" else obj == scene["object_names"].index(name)
+    floor_walls = np.isin(obj, [scene["object_names"].index(n) for n in ("Floor", "Walls")])
+    for name in RECEIVERS + ("Floor+Walls", "all"):
+        rows = (obj >= 0 if name == "all" else floor_walls if name == "Floor+Walls"
+                else obj == scene["object_names"].index(name))
         total = flux[rows].sum()
         if total > 0:
             out[name] = float(flux[rows][covered[rows]].sum() / total)
