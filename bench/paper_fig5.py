@@ -120,10 +120,11 @@ def coverage(scene, row, lamps):
     return cov
 
 
-def plot(rows, scene, lamps, path, views):
+def plot(rows, scene, lamps, path, views, view_rows=None):
     """Top: the share of direct flux by texture (floor, desks, all) and the solve's CPU time against E_max, one
     colour per a_min. Bottom: plan views of the upward-facing receivers (floor, desk and chair tops) for the
-    (E_max, a_min) pairs in `views`, shaded by how many lamps reach each polygon through a texture."""
+    (E_max, a_min) pairs in `views`, shaded by how many lamps reach each polygon through a texture, taken from
+    `view_rows` (default `rows`): runs whose link lists name their receivers."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -158,15 +159,17 @@ def plot(rows, scene, lamps, path, views):
     shown = shown[np.argsort(~floor[shown], kind="stable")]      # the floor first, the tops drawn over it
     pc = None
     for k, (e_max, a_min) in enumerate(views):
-        row = next((r for r in rows if r["convolution"] and math.isclose(r["e_max"], e_max)
+        row = next((r for r in (view_rows or rows) if r["convolution"] and math.isclose(r["e_max"], e_max)
                     and math.isclose(r["a_min"], a_min)
                     and all("receivers" in link for link in r["link_list"])), None)
         if row is None:
             continue
         ax = fig.add_subplot(grid[1, k])
         cov = coverage(scene, row, lamps)
+        # Furniture outlined: a desk top lit through textures by all four lamps is the floor's colour.
         pc = PolyCollection([corners[i][:, :2] for i in shown], array=cov[shown].sum(axis=1), cmap="viridis",
-                            clim=(0, len(lamps)), edgecolors="none")
+                            clim=(0, len(lamps)), edgecolors=[(0, 0, 0, 0) if floor[i] else (1, 1, 1, 1) for i in shown],
+                            linewidths=0.4)
         ax.add_collection(pc)
         ax.autoscale()
         ax.set_aspect("equal")
@@ -192,22 +195,18 @@ def main():
     ap.add_argument("--plot", default=os.path.join(REPO, "docs", "paper_fig5.png"))
     ap.add_argument("--views", default="4.04:0.802,4.04:0.04,1:0.04,0.18:0.802",
                     help="E_max:a_min pairs whose plan views the plot shows (runs whose links list receivers)")
-    ap.add_argument("--replot", default=None, help="only plot: the rows of this JSON (and of --json's, merged: "
-                                                   "the first row of each (convolution, E_max, a_min) kept)")
+    ap.add_argument("--replot", default=None, help="only plot: the curves from --json's rows, the plan views "
+                                                   "from this JSON's (a run with receiver lists)")
     a = ap.parse_args()
     scene = scalable_scene.make_scene(a.polygons, layout=a.layout)
     views = [tuple(float(x) for x in v.split(":")) for v in a.views.split(",") if v]
     if a.replot:
-        rows, seen = [], set()
-        for path in (a.replot, a.json):
-            with open(path) as f:
-                for r in json.load(f)["rows"]:
-                    key = (r["convolution"], r.get("e_max"), r.get("a_min"))
-                    if key not in seen:
-                        seen.add(key)
-                        rows.append(r)
+        with open(a.json) as f:
+            rows = json.load(f)["rows"]
+        with open(a.replot) as f:
+            view_rows = json.load(f)["rows"]
         lamps = np.flatnonzero(scene["flags"] & _native.LIGHT_ONLY)
-        plot(rows, scene, lamps, a.plot, views)
+        plot(rows, scene, lamps, a.plot, views, view_rows)
         return
     flux, lamps = direct_flux(scene)
     base = json.loads(a.settings)
