@@ -5,14 +5,17 @@ clustering at equal run time, from the lightmaps bench/run_time_vs_error.py save
         --python bench/run_time_vs_error.py -- --scenes scalable --methods standard,contact \\
         --settings 0.002:0.01,0.001:0.01 --hybrid '{"t_max": 1.0}' --clock cpu --json paper_fig6.json \\
         --ref-samples 512 --cycles-samples 4,16 --save-maps /tmp/maps
-    /usr/bin/python3 bench/paper_fig6.py --json docs/paper_fig6.json --maps /tmp/maps --scene scalable \\
-        [--object Floor] [--png docs/paper_fig6.png]
+    (and --methods standard --settings 0.0005:0.01,0.0002:0.01 --json paper_fig6_standard.json, same maps folder)
+    /usr/bin/python3 bench/paper_fig6.py --json docs/paper_fig6.json,docs/paper_fig6_standard.json \\
+        --maps /tmp/maps --scene scalable [--object Floor] [--png docs/paper_fig6.png] [--epsilon 0.001]
 
 Prints, per bake, the CPU seconds and the relative RMS error per texel against the converged Cycles reference
 over all receivers (run_time_vs_error's scoring, reference noise removed) and over one object's lightmap
-(`--object`, texels the reference covers), then the standard series' error interpolated in log-log at the
-convolution bake's CPU time (equal run time). The PNG puts that object's lightmaps side by side: the Cycles
-reference, the convolution bake, the standard bake closest in CPU time, and both bakes' differences.
+(`--object`: its UV islands less their outer edge; the reference's noise, from the two halves cached by
+run_time_vs_error in --cache, removed in quadrature), then the standard series interpolated in log-log at the
+convolution bake's CPU time (equal run time) and at its error (equal error). The PNG puts that object's lightmaps
+side by side: the Cycles reference, the convolution bake of --epsilon, the standard bake closest in CPU time, and
+both bakes' differences.
 """
 import argparse
 import json
