@@ -40,10 +40,12 @@ from addon_env import enable_addon  # noqa: E402
 BOUNCES = 32
 # (epsilon, min_size): the default is the third; finer settings need a smaller min_size to take effect.
 PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.005), (5e-5, 0.002)]
-# Each setting runs twice: standard refinement only, and hybrid with convolution links (the default).
-METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True})]
+# Each setting runs twice: standard refinement only, and hybrid with convolution links (the default); "contact"
+# is the hybrid with contact sub-blockers (furniture standing on the floor), run only when asked (--methods).
+METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True}),
+           ("contact", {"convolution": True, "contact_slabs": True})]
 CYCLES_SAMPLES = [4, 16, 64, 256]
-RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128}
+RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128, "classroom": 128}
 
 
 def parse_args():
@@ -60,8 +62,16 @@ def parse_args():
     ap.add_argument("--keep", action="store_true",
                     help="keep the other scenes' results from <out>/bench_results.json (re-run some scenes only)")
     ap.add_argument("--methods", default="standard,hybrid", help="Penumbra series to run: standard, hybrid")
-    ap.add_argument("--hybrid", default="{}", help="JSON of extra solver settings for the hybrid series, "
-                                                  "e.g. '{\"e_max\": 4}'")
+    ap.add_argument("--hybrid", default="{}", help="JSON of extra solver settings for the hybrid and contact "
+                                                  "series, e.g. '{\"e_max\": 4}'")
+    ap.add_argument("--settings", default=None, help="Penumbra (epsilon:min_size) list replacing the default, "
+                                                     "e.g. 0.002:0.01,0.0005:0.01")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="what the tables and plots call time: wall seconds, or the process's CPU seconds "
+                         "(both are kept in the JSON); cpu for a machine shared with other jobs")
+    ap.add_argument("--json", default="bench_results.json", help="results file name inside --out")
+    ap.add_argument("--save-maps", default=None, help="folder for every bake's lightmaps and the reference "
+                                                     "(npz per bake), for side-by-side images")
     return ap.parse_args(argv)
 
 
@@ -180,10 +190,19 @@ def run_scene(penumbra, name, args, penumbra_settings=None):
     result = {"scene": name, "resolution": res, "receivers": receivers, "reference_samples": ref_samples,
               "reference_seconds": ref_seconds, "noise_face": scorer.noise_face, "noise_texel": scorer.noise_texel,
               "faces": scorer.faces, "texels": scorer.texels, "penumbra": [], "cycles": []}
+    if getattr(args, "settings", None):
+        penumbra_settings = [tuple(float(x) for x in st.split(":")) for st in args.settings.split(",")]
     settings = penumbra_settings or PENUMBRA_SETTINGS
     settings = settings[::2] if args.quick else settings
+    cpu_clock = getattr(args, "clock", "wall") == "cpu"
+    result["clock"] = "cpu" if cpu_clock else "wall"
+    save_maps = getattr(args, "save_maps", None)
+    if save_maps:
+        os.makedirs(save_maps, exist_ok=True)
+        np.savez_compressed(os.path.join(save_maps, f"{name}_reference.npz"),
+                            **{n: 0.5 * (a[n] + b[n]) for n in receivers})
     scene = bpy.context.scene
-    methods = [(m, {**extra, **(json.loads(args.hybrid) if m == "hybrid" else {})})
+    methods = [(m, {**extra, **(json.loads(args.hybrid) if m != "standard" else {})})
                for m, extra in METHODS if m in args.methods.split(",")]
     for (method, extra), (eps, min_size) in ((m, st) for m in methods for st in settings):
         deadline = time.perf_counter() + args.penumbra_timeout
@@ -191,14 +210,21 @@ def run_scene(penumbra, name, args, penumbra_settings=None):
         def progress(stage, frac):
             return time.perf_counter() < deadline
         try:
+            cpu0 = time.process_time()
             rep = penumbra.bake(scene, progress=progress, resolution=res, uv_map=UV, targets={"LIGHTMAP"},
                                 epsilon=eps, min_size=min_size, **extra)
+            cpu = time.process_time() - cpu0
         except Exception as e:
             log(f"{name}: Penumbra {method} eps {eps} min_size {min_size}: stopped ({e})")
             result["penumbra"].append({"method": method, "epsilon": eps, "min_size": min_size, "stopped": str(e)})
             continue
-        s = scorer.score(penumbra_maps(penumbra, receivers, rep))
-        row = {"method": method, "epsilon": eps, "min_size": min_size, "seconds": rep["times"]["total"],
+        maps = penumbra_maps(penumbra, receivers, rep)
+        s = scorer.score(maps)
+        if save_maps:
+            np.savez_compressed(os.path.join(save_maps, f"{name}_{method}_{eps:g}.npz"), **maps)
+        row = {"method": method, "epsilon": eps, "min_size": min_size,
+               "seconds": cpu if cpu_clock else rep["times"]["total"], "cpu_seconds": cpu,
+               "wall_seconds": rep["times"]["total"],
                "solve_seconds": rep["times"]["solve"], "elements": rep.get("elements"), "links": rep.get("links"),
                "convolution_links": rep.get("convolution_links", 0), "iterations": rep.get("iterations"), **s}
         result["penumbra"].append(row)
@@ -209,9 +235,14 @@ def run_scene(penumbra, name, args, penumbra_settings=None):
     jobs = {n: (UV, res, res) for n in receivers}
     samples_list = [int(x) for x in args.cycles_samples.split(",")]
     for spp in (samples_list[:2] if args.quick else samples_list):
+        cpu0 = time.process_time()
         maps, sec = cycles_lightmaps(scene, jobs, spp, seed=7 + spp, bounces=BOUNCES)
+        cpu = time.process_time() - cpu0
         s = scorer.score(maps)
-        result["cycles"].append({"samples": spp, "seconds": sec, **s})
+        if save_maps:
+            np.savez_compressed(os.path.join(save_maps, f"{name}_cycles_{spp}.npz"), **maps)
+        result["cycles"].append({"samples": spp, "seconds": cpu if cpu_clock else sec, "cpu_seconds": cpu,
+                                 "wall_seconds": sec, **s})
         log(f"{name}: Cycles {spp} spp: {sec:.2f} s, face {100 * s['face']:.2f} %, texel {100 * s['texel']:.2f} %")
     return result
 
@@ -265,7 +296,8 @@ def tables(results):
                      f"{r['resolution']}²; reference: Cycles DIFFUSE bake, {r['reference_samples']} samples "
                      f"({r['reference_seconds']:.0f} s), own noise {100 * r['noise_face']:.2f} % per face and "
                      f"{100 * r['noise_texel']:.2f} % per texel (removed in quadrature in the *corrected* columns).\n")
-        lines.append("| method | setting | time (s) | per-face RMS | corrected | per-texel RMS | corrected | bias |")
+        clock = "CPU s" if r.get("clock") == "cpu" else "s"
+        lines.append(f"| method | setting | time ({clock}) | per-face RMS | corrected | per-texel RMS | corrected | bias |")
         lines.append("|---|---|---|---|---|---|---|---|")
         for p in r["penumbra"]:
             if "stopped" in p:
@@ -324,13 +356,15 @@ def plot(r, path):
     for ax, metric, title in ((axes[0], "face_corrected", "per-face averages"),
                               (axes[1], "texel_corrected", "per texel")):
         cyc = [c for c in r["cycles"] if c[metric] > 0]
-        for method, style, colour in (("standard", "o--", "tab:gray"), ("hybrid", "o-", "tab:blue")):
+        for method, style, colour in (("standard", "o--", "tab:gray"), ("hybrid", "o-", "tab:blue"),
+                                      ("contact", "o-", "tab:green")):
             pen = [p for p in r["penumbra"] if "stopped" not in p and p[metric] > 0
                    and p.get("method", "standard") == method]
             if not pen:
                 continue
             ax.loglog([p["seconds"] for p in pen], [100 * p[metric] for p in pen], style, color=colour,
-                      label=f"Penumbra {method}" + (" (convolution links)" if method == "hybrid" else ""))
+                      label=f"Penumbra {method}" + {"hybrid": " (convolution links)",
+                                                    "contact": " (+ contact sub-blockers)"}.get(method, ""))
             for p in pen:
                 ax.annotate(f"ε {p['epsilon']:g}", (p["seconds"], 100 * p[metric]), fontsize=7, color=colour,
                             textcoords="offset points", xytext=(4, 4))
@@ -339,7 +373,7 @@ def plot(r, path):
         for c in cyc:
             ax.annotate(f"{c['samples']} spp", (c["seconds"], 100 * c[metric]), fontsize=7,
                         textcoords="offset points", xytext=(4, 4))
-        ax.set_xlabel("time (s, 2 cores)")
+        ax.set_xlabel("CPU s (2 shared cores)" if r.get("clock") == "cpu" else "time (s, 2 cores)")
         ax.set_ylabel("relative RMS error (%), reference noise removed")
         ax.set_title(f"{r['scene']}: {title}")
         ax.grid(True, which="both", alpha=0.3)
@@ -355,7 +389,7 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     names = args.scenes.split(",")
     results = []
-    saved = os.path.join(args.out, "bench_results.json")
+    saved = os.path.join(args.out, args.json)
     if args.keep and os.path.exists(saved):
         with open(saved) as f:
             results = [r for r in json.load(f)["results"] if r["scene"] not in names]
@@ -364,7 +398,7 @@ def main():
         r = run_scene(penumbra, name, args)
         results.append(r)
         plot(r, os.path.join(args.out, f"bench_{name}.png"))
-        with open(os.path.join(args.out, "bench_results.json"), "w") as f:
+        with open(saved, "w") as f:
             json.dump({"blender": bpy.app.version_string, "results": results,
                        "seconds": time.perf_counter() - t0}, f, indent=1)
     print(tables(results))

@@ -18,6 +18,10 @@ to -- stay the same at every size. What does *not* stay the same is anything rel
 the solver's `min_size` is a fraction of the scene's diagonal, which grows like sqrt(polygons);
 `scene_diagonal(scene)` gives the diagonal so a benchmark can hold the smallest element size fixed in metres.
 
+`layout="classroom"` fills the same room with rows of school desks (top and four legs) and chairs behind them,
+all facing the front wall, without monitors or drawer units: the furnished room of issue 12 (desks and chairs
+standing on the floor under four area lights), at the same polygon budget and lights.
+
 Everything is deterministic: the per-workstation variation (rotation, offset, colours, chair position) comes
 from a seeded generator, and make_scene(n) twice gives identical arrays. build_bpy(n) builds the same
 geometry in Blender (bpy is imported only there), so the add-on's export of it matches make_scene(n).
@@ -35,7 +39,7 @@ MARGIN = 1.0                        # free floor between the outer workstations 
 HEIGHT = 3.0                        # room height
 ASPECT = 4.0 / 3.0                  # room width / depth, before rounding to whole workstations
 FURNITURE_SHARE = 0.65              # fraction of the polygons spent on workstations
-QUADS_PER_STATION = 65
+QUADS_PER_STATION = {"office": 65, "classroom": 50}
 LIGHT_EXITANCE = 100.0              # W/m^2 per colour unit, the same at every size
 LIGHT_COLOR = (1.0, 0.95, 0.85)
 LIGHT_FILL = 0.4                    # light edge / quadrant edge, in x and in y
@@ -120,22 +124,42 @@ def _station(b, place, desk_rgb, chair_rgb, chair_dy):
             b.box("Chairs", chair_rgb, (x, c + y, 0.0), (x + 0.03, c + y + 0.03, 0.42), place, "snwe")
 
 
+def _school_station(b, place, desk_rgb, chair_rgb, chair_dy):
+    """A pupil's desk and chair in the workstation's frame: the desk spans y in [0, 0.6], the pupil sits at -y.
+    Legs stand on the floor with no bottom face, as in _station, so the floor meets every leg edge-on."""
+    b.box("Desks", desk_rgb, (-0.6, 0.0, 0.72), (0.6, 0.6, 0.76), place)
+    for x in (-0.57, 0.52):
+        for y in (0.03, 0.52):
+            b.box("Desks", desk_rgb, (x, y, 0.0), (x + 0.05, y + 0.05, 0.72), place, "snwe")
+    c = chair_dy
+    b.box("Chairs", chair_rgb, (-0.22, c - 0.5, 0.42), (0.22, c - 0.06, 0.46), place)
+    b.box("Chairs", chair_rgb, (-0.22, c - 0.54, 0.46), (0.22, c - 0.5, 0.9), place)
+    for x in (-0.2, 0.17):
+        for y in (-0.48, -0.11):
+            b.box("Chairs", chair_rgb, (x, c + y, 0.0), (x + 0.03, c + y + 0.03, 0.42), place, "snwe")
+
+
+STATIONS = {"office": _station, "classroom": _school_station}
+
+
 def _rotation_z(angle):
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def plan(n_polygons):
+def plan(n_polygons, layout="office"):
     """The layout for a target polygon count: workstation count and grid, room size, subdivisions."""
     n_polygons = int(n_polygons)
+    if layout not in STATIONS:
+        raise ValueError(f"unknown layout {layout!r}; known: {', '.join(STATIONS)}")
     if n_polygons < MIN_POLYGONS:
         raise ValueError(f"make_scene needs at least {MIN_POLYGONS} polygons, got {n_polygons}")
     budget = n_polygons - len(LIGHTS)
-    stations = max(1, round(FURNITURE_SHARE * budget / QUADS_PER_STATION))
+    stations = max(1, round(FURNITURE_SHARE * budget / QUADS_PER_STATION[layout]))
     nx = max(1, math.ceil(math.sqrt(stations * ASPECT)))
     ny = math.ceil(stations / nx)
     W, D, H = PITCH * nx + 2 * MARGIN, PITCH * ny + 2 * MARGIN, HEIGHT
-    room = budget - stations * QUADS_PER_STATION
+    room = budget - stations * QUADS_PER_STATION[layout]
     # Square-ish faces of one edge length s everywhere: (2WD + 2(W + D)H) / s^2 = room.
     s = math.sqrt((2 * W * D + 2 * (W + D) * H) / room)
     wx, wy, wz = (max(1, round(a / s)) for a in (W, D, H))
@@ -153,14 +177,14 @@ def plan(n_polygons):
         if best is None or key < best[0]:
             best = (key, fx, fy)
     floor = best[1:]
-    total = len(LIGHTS) + stations * QUADS_PER_STATION + walls + wx * wy + floor[0] * floor[1]
-    return {"target": n_polygons, "polygons": total, "stations": stations, "grid": (nx, ny),
+    total = len(LIGHTS) + stations * QUADS_PER_STATION[layout] + walls + wx * wy + floor[0] * floor[1]
+    return {"target": n_polygons, "layout": layout, "polygons": total, "stations": stations, "grid": (nx, ny),
             "room": (W, D, H), "walls": (wx, wy, wz), "ceiling": ceiling, "floor": floor}
 
 
-def lights(n_polygons):
+def lights(n_polygons, layout="office"):
     """The four area lights: (name, centre (x, y, z), size (x, y), exitance rgb)."""
-    W, D, H = plan(n_polygons)["room"]
+    W, D, H = plan(n_polygons, layout)["room"]
     lx, ly = LIGHT_FILL * W / 2, LIGHT_FILL * D / 2
     out = []
     for k, (sx, sy) in enumerate(((-1, -1), (1, -1), (-1, 1), (1, 1))):
@@ -169,9 +193,9 @@ def lights(n_polygons):
     return out
 
 
-def make_scene(n_polygons, seed=0):
+def make_scene(n_polygons, seed=0, layout="office"):
     """The scene as the keyword arguments of penumbra._native.solve (without settings and progress)."""
-    p = plan(n_polygons)
+    p = plan(n_polygons, layout)
     W, D, H = p["room"]
     wx, wy, wz = p["walls"]
     b = _Builder()
@@ -191,14 +215,16 @@ def make_scene(n_polygons, seed=0):
     chair = rng.integers(0, len(CHAIR_COLORS), n)
     chair_dy = rng.uniform(-0.1, 0.15, n)
     nx = p["grid"][0]
+    if layout == "classroom":
+        angle, offset = np.zeros_like(angle), np.zeros_like(offset)     # rows, all facing the front wall
     for k in range(n):
         i, j = k % nx, k // nx
         centre = np.array([-W / 2 + MARGIN + PITCH * (i + 0.5) + offset[k, 0],
                            -D / 2 + MARGIN + PITCH * (j + 0.5) + offset[k, 1], 0.0])
-        _station(b, (_rotation_z(angle[k]), centre), DESK_COLORS[desk[k]], CHAIR_COLORS[chair[k]],
-                 chair_dy[k])
+        STATIONS[layout](b, (_rotation_z(angle[k]), centre), DESK_COLORS[desk[k]], CHAIR_COLORS[chair[k]],
+                         chair_dy[k])
 
-    for name, (cx, cy, cz), (lx, ly), _ in lights(n_polygons):
+    for name, (cx, cy, cz), (lx, ly), _ in lights(n_polygons, layout):
         # u x v points down (-z): the lights face the room, as Blender's area lights face local -Z.
         b.grid(name, (0, 0, 0), (cx - lx / 2, cy - ly / 2, cz), (0, ly, 0), (lx, 0, 0))
 
@@ -228,7 +254,7 @@ def scene_diagonal(scene):
     return float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
 
 
-def build_bpy(n_polygons, scene=None, seed=0):
+def build_bpy(n_polygons, scene=None, seed=0, layout="office"):
     """Build the same scene in Blender: one mesh object per entry of MESH_OBJECTS (one material per distinct
     reflectance, per object, so a Cycles bake can take all objects at once), four RECTANGLE area lights, a
     camera and a black world. Returns {name: object}."""
@@ -237,12 +263,14 @@ def build_bpy(n_polygons, scene=None, seed=0):
     import scenes                   # noqa: E402  (needs bpy; kept out of make_scene's import path)
 
     scene = scene or bpy.context.scene
-    arrays = make_scene(n_polygons, seed)
+    arrays = make_scene(n_polygons, seed, layout)
     verts, polys = arrays["vertices"], arrays["polygons"]
     rgb, obj = arrays["reflectance"], arrays["object_index"]
     obs = {}
     for k, name in enumerate(MESH_OBJECTS):
         rows = polys[obj == k]
+        if not len(rows):
+            continue            # the classroom has no monitors; an empty mesh would only trip the bakes
         used, local = np.unique(rows, return_inverse=True)
         colors, mat_index = np.unique(rgb[obj == k], axis=0, return_inverse=True)
         me = bpy.data.meshes.new(name)
@@ -255,7 +283,7 @@ def build_bpy(n_polygons, scene=None, seed=0):
         ob = bpy.data.objects.new(name, me)
         scene.collection.objects.link(ob)
         obs[name] = ob
-    for name, centre, (lx, ly), _ in lights(n_polygons):
+    for name, centre, (lx, ly), _ in lights(n_polygons, layout):
         light = bpy.data.lights.new(name, "AREA")
         light.shape = "RECTANGLE"
         light.size, light.size_y = lx, ly
@@ -267,7 +295,7 @@ def build_bpy(n_polygons, scene=None, seed=0):
         ob.location = centre                        # no rotation: it faces local -Z, down
         scene.collection.objects.link(ob)
         obs[name] = ob
-    W, D, H = plan(n_polygons)["room"]
+    W, D, H = plan(n_polygons, layout)["room"]
     # From a front corner at eye height, looking along the diagonal of the room.
     yaw = -math.degrees(math.atan2(W, D))
     obs["Camera"] = scenes._camera((-W / 2 + 0.5, -D / 2 + 0.5, 2.2), (75.0, 0.0, yaw), 16.0, scene)

@@ -15,6 +15,8 @@
 - office5k: the same room at the size of that figure -- about 5,000 polygons, four rectangular area lights (one
   over each desk), four desks and chairs finely subdivided, the bookcase and two filing cabinets.
 - scalable: examples/scalable_scene.py, an open-plan office whose polygon count is a parameter (`polygons`).
+- classroom: the same generator's classroom layout at 1,000 polygons (12 m x 8 m x 3 m, 13 pupils' desks and
+  chairs in rows, standing on the floor, under four rectangular area lights): issue 12's furnished room.
 - window: issue 13's example, a closed 4 m x 4 m x 2.5 m room lit from outside only through a 1 m x 1 m window
   with a cross-shaped frame: a SUN lamp (35 degrees up) whose patch falls on the floor and a box, a Sky Texture
   world (sun disc off, its sun where the lamp is), and inside a POINT lamp with a 10 cm radius in a corner.
@@ -35,7 +37,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cornell_box  # noqa: E402
 
 LIGHT_SCENES = ("light_point", "light_spot", "light_sun", "light_world", "light_sky", "light_area")
-SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable", "window") + LIGHT_SCENES
+SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable", "classroom", "window") + LIGHT_SCENES
+CLASSROOM_POLYGONS = 1000
 
 
 def _diffuse(name, color):
@@ -383,6 +386,9 @@ def build(name, scene=None, polygons=5000):
     if name == "scalable":
         import scalable_scene
         return scalable_scene.build_bpy(polygons, scene)
+    if name == "classroom":
+        import scalable_scene
+        return scalable_scene.build_bpy(CLASSROOM_POLYGONS, scene, layout="classroom")
     if name == "blockers":
         return build_blockers(scene)
     if name == "lattice":

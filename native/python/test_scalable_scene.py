@@ -11,16 +11,17 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import scalable_scene  # noqa: E402
 
 
+@pytest.mark.parametrize("layout", ["office", "classroom"])
 @pytest.mark.parametrize("n", [300, 1000, 1234, 5000, 20000, 50000, 77777, 100000])
-def test_polygon_count_is_within_five_percent_of_the_target(n):
+def test_polygon_count_is_within_five_percent_of_the_target(n, layout):
     # plan() is what make_scene builds (make_scene asserts it), and it is cheap at 100k.
-    got = scalable_scene.plan(n)["polygons"]
+    got = scalable_scene.plan(n, layout)["polygons"]
     assert abs(got - n) <= 0.05 * n, (n, got)
 
 
-@pytest.mark.parametrize("n", [1000, 5000])
-def test_arrays_are_what_solve_takes(n):
-    s = scalable_scene.make_scene(n)
+@pytest.mark.parametrize("n, layout", [(1000, "office"), (5000, "office"), (1000, "classroom")])
+def test_arrays_are_what_solve_takes(n, layout):
+    s = scalable_scene.make_scene(n, layout=layout)
     assert set(s) == {"vertices", "polygons", "reflectance", "emission", "flags", "object_index", "object_names"}
     v, p = s["vertices"], s["polygons"]
     P = len(p)
@@ -47,7 +48,7 @@ def test_arrays_are_what_solve_takes(n):
     d = np.einsum("ij,ij->i", corners[:, 2] - corners[:, 0], normal / area[:, None])
     assert np.abs(d).max() < 1e-4
 
-    W, D, H = scalable_scene.plan(n)["room"]
+    W, D, H = scalable_scene.plan(n, layout)["room"]
     assert (np.abs(v[:, 0]) <= W / 2 + 1e-4).all() and (np.abs(v[:, 1]) <= D / 2 + 1e-4).all()
     assert (v[:, 2] >= -1e-4).all() and (v[:, 2] <= H + 1e-4).all()
     # Every face faces into the room (walls and lights inwards, furniture outwards from its own volume, which
@@ -61,6 +62,24 @@ def test_arrays_are_what_solve_takes(n):
     assert np.allclose(light_normals, [0, 0, -1])
     floor = s["object_index"] == names.index("Floor")
     assert np.allclose(normal[floor] / area[floor][:, None], [0, 0, 1])
+
+
+def test_classroom_desks_and_chairs_stand_on_the_floor():
+    s = scalable_scene.make_scene(1000, layout="classroom")
+    names, obj = s["object_names"], s["object_index"]
+    assert not (obj == names.index("Monitors")).any()
+    stations = scalable_scene.plan(1000, "classroom")["stations"]
+    assert (obj == names.index("Desks")).sum() == stations * 22          # top and four legs
+    assert (obj == names.index("Chairs")).sum() == stations * 28         # seat, back and four legs
+    # Four legs per desk and per chair, each four side quads with two corners on the floor (no vertex is
+    # shared between quads): the contact configuration the convolution links have to handle.
+    furniture = np.isin(obj, [names.index("Desks"), names.index("Chairs")])
+    z = s["vertices"][s["polygons"][furniture]][:, :, 2]
+    assert (np.abs(z) < 1e-6).sum() == stations * 8 * 4 * 2
+    # Rows: every desk top is axis-aligned (no per-station rotation, unlike the office).
+    tops = s["vertices"][s["polygons"][obj == names.index("Desks")]]
+    edges = tops[:, 1] - tops[:, 0]
+    assert np.all(np.isclose(edges, 0, atol=1e-6).sum(axis=1) >= 2)
 
 
 def test_deterministic_and_seeded():
