@@ -40,7 +40,15 @@ public:
     std::vector<ConvolutionLink> convolutionLinks() const;
     const ConvolutionSites* convolutionSites() const { return sites_.get(); }
 
+    // The faces' shares of the partly seen links into clusters that were kept rather than opened; the
+    // solver reads them (Solver::setClusterFaceVisibility).
+    const ClusterFaceVisibility& faceVisibility() const { return faceVis_; }
+
 private:
+    // Records each face's visible share of `s` for the cluster receiver `r`; false when the cluster is too
+    // large for that and must be opened.
+    bool shareByFaces(int r, int s);
+    ClusterFaceVisibility faceVis_;
     std::vector<Link> linkFacePairs(Progress* progress);
     std::vector<Link> linkFromRoot(Progress* progress);
     void refine(int r, int s, std::vector<Link>& out);

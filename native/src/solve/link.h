@@ -2,6 +2,10 @@
 // refinement pass can re-judge the link with the source's new radiosity without casting rays again.
 #pragma once
 #include <cstdint>
+#include <map>
+#include <mutex>
+#include <utility>
+#include <vector>
 
 namespace penumbra {
 
@@ -13,6 +17,13 @@ struct Link {
     float Fspread = 0; // max - min of the point form factors over the receiver
     float V = 1;       // visible fraction of the rays
     bool partial() const { return V > 0 && V < 1; }
+};
+
+// Per partly seen link into a cluster that the refiner kept instead of opening: each face's own visible share
+// of the source, in the cluster's polygon order, keyed by (receiver cluster key, source key).
+struct ClusterFaceVisibility {
+    std::mutex mutex;
+    std::map<std::pair<uint64_t, uint64_t>, std::vector<float>> shares;
 };
 
 }  // namespace penumbra

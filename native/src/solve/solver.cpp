@@ -10,11 +10,24 @@ namespace penumbra {
 
 void Solver::prepareClusters(const std::vector<Link>& links) {
     clusterLinks_.assign(h_.clusters().size(), {0, 0});
+    linkFaceV_.assign(links.size(), nullptr);
+    const ClusterTree& ct = h_.clusters();
+    if (polyPos_.empty() && !ct.empty()) {
+        polyPos_.assign(h_.scene().polygons.size(), -1);
+        for (size_t k = 0; k < ct.polygons().size(); ++k) polyPos_[size_t(ct.polygons()[k])] = int(k);
+    }
     // Links into clusters sort first (clusters are negative nodes).
     for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
         int r = links[groupStart_[g]].receiver;
         if (!isClusterNode(r)) break;
         clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
+        if (faceVis_ && !faceVis_->shares.empty())
+            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
+                int src = links[i].source;
+                uint64_t sk = isClusterNode(src) ? ct[clusterIndex(src)].key : h_[src].key;
+                auto it = faceVis_->shares.find({ct[clusterIndex(r)].key, sk});
+                if (it != faceVis_->shares.end() && links[i].partial()) linkFaceV_[i] = &it->second;
+            }
     }
 }
 
@@ -64,8 +77,11 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
             const Vec3& y = h_[p].center;
             for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent) {
                 auto [lo, hi] = clusterLinks_[size_t(c)];
-                for (size_t i = lo; i < hi; ++i)
-                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * (unoccluded_ ? 1.0 : double(links[i].V));
+                for (size_t i = lo; i < hi; ++i) {
+                    double v = links[i].V;
+                    if (linkFaceV_[i]) v = (*linkFaceV_[i])[size_t(polyPos_[p] - ct[c].begin)];
+                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * (unoccluded_ ? 1.0 : v);
+                }
             }
             down[p] = sum;
         }

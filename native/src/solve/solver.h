@@ -31,6 +31,10 @@ public:
         textures_ = textures;
     }
 
+    // Each face's visible share of the partly seen links into clusters that the refiner kept rather than
+    // opened (Refiner::faceVisibility); a face below such a link takes its own share instead of the
+    // link's V. Must outlive the solve.
+    void setClusterFaceVisibility(const ClusterFaceVisibility* v) { faceVis_ = v; }
     // Per element: irradiance from the scene's lamps and world (LightSet::leafIrradiance), reflected by
     // the leaves like gathered light; null or empty without lights. Must outlive the solve.
     void setLightIrradiance(const std::vector<Rgb>* e) { lightE_ = e && !e->empty() ? e : nullptr; }
@@ -62,6 +66,9 @@ private:
     const std::vector<ConvolutionLink>* convLinks_ = nullptr;
     const CompleteTextures* textures_ = nullptr;
     const std::vector<Rgb>* lightE_ = nullptr;
+    const ClusterFaceVisibility* faceVis_ = nullptr;
+    std::vector<const std::vector<float>*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
+    std::vector<int> polyPos_;                            // polygon -> its index in the cluster tree's order
 };
 
 }  // namespace penumbra

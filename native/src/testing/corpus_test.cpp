@@ -131,6 +131,42 @@ TEST(Corpus, SealedBoxInALitRoomStaysExactlyBlack) {
     }
 }
 
+TEST(Corpus, PartlyHiddenClusterReceiversShareTheirLightByEachFacesOwnVisibility) {
+    // The safe of the test above, open on top: its inner faces see the lamp only through the opening, its
+    // outer faces see it in full. A link into its cluster is kept, and each face takes its own visible share
+    // of the source (Refiner::shareByFaces) instead of the cluster's one share, which would light the inside
+    // like the outside. Against the same scene solved face by face (clustering off), the light on the inner
+    // faces agrees within 4 % of the brightest (2.5 % measured; 1.8 % when the cluster was opened instead).
+    auto t = testing::litRoom();
+    Rgb g{0.7, 0.7, 0.7};
+    t.names.push_back("Safe");
+    int safe = int(t.polygons.size() / 4);
+    t.box({0.375, -0.75, 0}, {0.875, -0.25, 0.5}, g, {}, false, 3);
+    t.names.push_back("Inside");
+    int inside = int(t.polygons.size() / 4);
+    t.box({0.40625, -0.71875, 0.03125}, {0.84375, -0.28125, 0.46875}, g, {}, true, 4);
+    // Without the tops (each box's second face), the inside is open to the room above.
+    for (int p : {inside + 1, safe + 1}) {
+        t.polygons.erase(t.polygons.begin() + 4 * p, t.polygons.begin() + 4 * (p + 1));
+        t.reflectance.erase(t.reflectance.begin() + 3 * p, t.reflectance.begin() + 3 * (p + 1));
+        t.emission.erase(t.emission.begin() + 3 * p, t.emission.begin() + 3 * (p + 1));
+        t.flags.erase(t.flags.begin() + p);
+        t.objectIndex.erase(t.objectIndex.begin() + p);
+    }
+    Settings s = cheap();
+    auto clustered = solveAndCheck(t, s);
+    EXPECT_GT(clustered->report().count("shared_cluster_links"), 0u);
+    s.clustering = false;
+    auto exact = solveAndCheck(t, s);
+    std::vector<float> a = Probe(t, 4).radiance(*clustered), b = Probe(t, 4).radiance(*exact);
+    ASSERT_EQ(a.size(), b.size());
+    float peak = 0, worst = 0;
+    for (size_t i = 0; i < a.size(); ++i) peak = std::max(peak, b[i]);
+    for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::fabs(a[i] - b[i]));
+    ASSERT_GT(peak, 0.01f);
+    EXPECT_LT(worst, 0.04f * peak);
+}
+
 TEST(Corpus, MovingAndScalingTheSceneChangesNothing) {
     auto base = testing::litRoom();
     auto ref = solve(base.input(), cheap(), nullptr);
