@@ -30,6 +30,8 @@ PENUMBRA_COUNTER(kGatherEmitters, "gather_emitters");  // emitting faces the fin
 PENUMBRA_COUNTER(kIterations, "iterations");           // of the solver, over all refinement passes
 PENUMBRA_COUNTER(kRefinePasses, "refine_passes");
 PENUMBRA_COUNTER(kLights, "lights");          // point, spot and sun lamps and the world, when they give light
+PENUMBRA_COUNTER(kSunTextures, "sun_textures");  // faces whose sun shadow is a convolution texture (sun_textures.h)
+PENUMBRA_COUNTER(kSunRefused, "sun_refused");    // faces with blockers whose texture was refused (rays instead)
 PENUMBRA_COUNTER(kLightRays, "light_rays");   // shadow rays to them for the solve's elements (not the bake's)
 
 class Stopwatch {
@@ -101,6 +103,13 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     // relative to that light when no face emits (Refiner's scale).
     auto lightSet = std::make_shared<LightSet>(scene, &rays, settings.lightRays);
     LightStats lightStats;
+    if (settings.convolution && !lightSet->empty()) {
+        auto sun = std::make_shared<SunTextures>(scene, settings, sol->threads_);
+        counters.add(kSunTextures, sun->made());
+        counters.add(kSunRefused, sun->refused());
+        if (sun->made() > 0) lightSet->setSunTextures(std::move(sun));
+        rep.seconds["sun_textures"] = clock.lap();
+    }
     if (!lightSet->empty()) {
         double flux = 0, area = 0;
         for (size_t i = 0; i < h.numRoots(); ++i) {
