@@ -114,9 +114,15 @@ ConvolutionPlan planFine(const SunStandIn& s, const std::vector<BlockerTriangle>
     double n = std::ceil(P.window.extent / texel);
     int want = static_cast<int>(std::clamp(n, double(s.settings.minResolution), double(s.settings.maxResolution)));
     if (want <= P.n) return P;
+    // E_rr stays in the automatic texels (half the narrowest penumbra, the unit e_max is given in), so the
+    // slabs are chosen for the same error at any texel size.
+    const double ratio = double(want) / P.n;
     ConvolutionSettings fine = s.settings;
     fine.resolution = want;
-    return planSoftShadow(s.source, blockers, receiver, fine);
+    fine.e_max = s.settings.e_max * ratio;
+    ConvolutionPlan Q = planSoftShadow(s.source, blockers, receiver, fine);
+    Q.E_rr /= ratio;
+    return Q;
 }
 
 }  // namespace

@@ -58,7 +58,8 @@ SunStandIn sunStandIn(const SunDesc& sun, const std::vector<BlockerTriangle>& bl
 
 ConvolutionPlan planSunShadow(const SunDesc& sun, const std::vector<BlockerTriangle>& blockers,
                               const ReceiverDesc& receiver, const ConvolutionSettings& settings);
-// V over the receiver: lookupVisibility(texture, P) reads it at any point P.
+// V over the receiver: lookupVisibility(texture, P) reads it at any point P. With resolution 0 the plan's E_rr
+// (and e_max) is in the engine's automatic texels, half the narrowest penumbra, whatever texels it takes.
 SoftShadowTexture computeSunShadow(const SunDesc& sun, const std::vector<BlockerTriangle>& blockers,
                                    const ReceiverDesc& receiver, const ConvolutionSettings& settings);
 
