@@ -195,11 +195,13 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         }
         // With gather_rays = 0 the gather takes each leaf's visibility from its links, whose rays meet
         // every polygon; an object hidden from shadow rays (kNoLampShadow) must let the emitters' light
-        // through, so then the gather casts its own shadow rays (light_rays of them, as the lamps do).
+        // through, so then the gather casts its own shadow rays (light_rays of them, as the lamps do). So
+        // must a light that casts no shadow (kCastsNoShadow): one visibility per leaf cannot hold it and
+        // a shadowed emitter at once.
         int gatherRays = settings.gatherRays;
         if (gatherRays == 0)
             for (const ScenePolygon& p : scene.polygons)
-                if (!p.blocksLamps) {
+                if (!p.blocksLamps || !p.castsShadow) {
                     gatherRays = settings.lightRays;
                     break;
                 }

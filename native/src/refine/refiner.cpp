@@ -285,6 +285,12 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
     for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
     for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
+    // A light whose Cast Shadow is off is seen whole (kCastsNoShadow).
+    if (!sc.polygons[size_t(s.polygon)].castsShadow) {
+        l.V = 1;
+        l.F = l.Fmean;
+        return;
+    }
     if (rays_.shaftIsClear(rb, sb, r.polygon, s.polygon)) {
         counters_.add(kShaftsClear);
         l.V = 1;
