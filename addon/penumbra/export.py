@@ -21,6 +21,7 @@ EMIT_BACK = 1      # also emits from the back side (Cycles mesh emitters are two
 LIGHT_ONLY = 2     # a Blender light: emits, but neither receives, reflects nor blocks
 NO_LAMP_SHADOW = 4  # Ray Visibility > Shadow off: shadow rays to lamps, area lights and emitters pass it
 CASTS_NO_SHADOW = 8  # an AREA light with Cast Shadow off: nothing hides its light
+NO_DIFFUSE = 16    # Ray Visibility > Diffuse off: it reflects nothing onto others and bounced light passes it
 
 DISK_SECTORS = 32
 # A quad is sent as one polygon only if it is flat and convex: the solver subdivides it as a planar
@@ -535,8 +536,10 @@ def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=No
                                  f"meshes shine through it onto the lightmaps; the world is still blocked by it, "
                                  f"and the light bounced on from what it shades is as if it blocked")
             if not diffuse:
-                res.warnings.append(f"object '{name}': Ray Visibility > Diffuse off is not supported yet: it still "
-                                    f"reflects light onto others and blocks their light")
+                fl |= NO_DIFFUSE
+                res.notes.append(f"object '{name}': hidden from diffuse rays, so it reflects no light onto others and "
+                                 f"the light bounced between others passes it; it is still lit and baked, and still "
+                                 f"blocks the lamps', area lights', emitters' and the world's light")
             add_part(name, co_w, rows, albedo_t[si], math.pi * radiance, fl)
         finally:
             ob_eval.to_mesh_clear()

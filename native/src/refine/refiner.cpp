@@ -338,7 +338,8 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
         // Counted, such rays cut that light a second time: objects resting on a floor came out 5-10 %
         // dark.
         char vis[256];
-        rays_.visiblePairs(from, to, n, vis);
+        // Reflected light passes faces hidden from diffuse rays; an emitter's light is a shadow ray's.
+        rays_.visiblePairs(from, to, n, vis, !emits(si));
         counters_.add(kRays, size_t(n));
         for (int i = 0; i < n; ++i) {
             Vec3 d = to[i] - from[i];
@@ -592,7 +593,7 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
         counters_.add(kShaftsClear);
         l.V = 1;
     } else {
-        l.V = float(rays_.unoccludedFraction(from, to, n));
+        l.V = float(rays_.unoccludedFraction(from, to, n, !emits(si)));
         counters_.add(kRays, size_t(n));
     }
     return true;

@@ -155,6 +155,7 @@ Scene buildScene(const SceneInput& in) {
         sp.occludes = !(f & kLightOnly) && !back;
         sp.blocksLamps = !(f & kNoLampShadow);
         sp.castsShadow = !(f & kCastsNoShadow);
+        sp.diffuseVisible = !(f & kNoDiffuse);
         sp.object = in.objectIndex[p];
         sp.input = int(p);
         sp.surface = findRoot(in.polygons[p * 4]);

@@ -22,6 +22,11 @@ enum PolygonFlags : uint8_t {
     // gather casts no rays to it) and along the element links it sends on (the refiner takes them as
     // unoccluded). Cluster links from a cluster holding it still see blockers.
     kCastsNoShadow = 8,
+    // Blender's Ray Visibility > Diffuse off: diffuse bounce rays pass through it. It sends none of the light
+    // it reflects (only its emission, if any), and the links between other faces that carry reflected light
+    // (from sources that do not emit) see through it; it still receives light and blocks the lamps', the
+    // emitters' and the world's.
+    kNoDiffuse = 16,
 };
 
 // A Blender lamp that is not a polygon, in Cycles' units (blender-facts.md section 1). Point and spot:
@@ -77,6 +82,7 @@ struct ScenePolygon {
     bool occludes = true;   // put in the ray-tracing scene (a back-side copy shares its twin's triangles)
     bool blocksLamps = true;  // and in the one the lamps' shadow rays use (kNoLampShadow clears it)
     bool castsShadow = true;  // its light is blocked by anything (kCastsNoShadow clears it)
+    bool diffuseVisible = true;  // diffuse bounce rays meet it (kNoDiffuse clears it)
     int object = -1;
     int input = -1;         // index of the input polygon it came from
     // Faces joined through shared input vertices, transitively: one connected surface. The display
