@@ -7,11 +7,12 @@
 // For every sun with a size that casts shadows and every receiving face that sees the whole sun disk above
 // its horizon (with 3 degrees to spare), the blockers are the faces lamps' shadow rays meet (not those
 // hidden from shadow rays) that lie partly in front of the face and inside its prism towards the sun,
-// widened by the penumbra. The face gets a texture when the engine can plan it (source, blockers and
-// receiver in depth order along the face's normal; contact sub-blockers as the contact_slabs setting
-// says), its blocker error E_rr is within e_max and its predicted FFT time within t_max, at up to
-// max_texture texels per side; otherwise (and for faces without blockers, which the rays find in full
-// light with their first points) the rays decide as before.
+// widened by the penumbra. The face gets a texture when no blocker reaches down to its plane, the engine
+// can plan it in one slab (source, blockers and receiver in depth order along the face's normal), its
+// blocker error E_rr is within e_max and its predicted FFT time within t_max, at up to max_texture texels
+// per side; otherwise (and for faces without blockers, which the rays find in full light with their first
+// points) the rays decide as before. One slab, because the engine's product of slab maps is wrong where
+// one connected blocker is cut (sun_textures.cpp); blockers parallel to the face are the exact case.
 #pragma once
 #include <memory>
 #include <vector>
