@@ -2,7 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <ctime>
 #include <cstdio>
 #include <vector>
 
@@ -124,6 +126,12 @@ TEST(SunTextures, TheBakeReadsTheSunsShadowFromTextures) {
     }
     std::printf("%d of %d points in penumbra; textures: max |dV| %.4f, mean %.5f; rays: max %.4f, mean %.5f\n",
                 penumbra, count, worst[0], mean[0], worst[1], mean[1]);
+    // Their cost on one thread (printed, not asserted: CPU time on a shared machine).
+    std::clock_t c0 = std::clock();
+    SunTextures textures(sc, Settings{}, 1);
+    double cpu = double(std::clock() - c0) / CLOCKS_PER_SEC;
+    std::printf("%zu textures, %zu texels, %.3f CPU s on one thread: %.2f us per texel\n", textures.made(),
+                textures.texels(), cpu, 1e6 * cpu / double(std::max<size_t>(1, textures.texels())));
     EXPECT_GT(penumbra, 300);
     EXPECT_LT(worst[0], 0.03);
     EXPECT_LT(mean[0], 0.002);
