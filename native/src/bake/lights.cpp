@@ -206,6 +206,12 @@ Rgb LightSet::one(const Light& l, int index, int polygon, const Vec3& p, const V
                 return E * clearWeight(1);
             }
             if (!shadows && !spot) return E;
+            if (!spot && sunTextures_) {
+                // A face with a texture (sun_textures.h) sees the whole disk; V is its visible share by area,
+                // as the points below count it.
+                double v = sunTextures_->visibility(index, polygon, p);
+                if (std::isfinite(v)) return E * v;
+            }
             int count = samplesFor(maxRays, 2 * l.radius / std::sqrt(d2));
             Vec3 t1, t2;
             frame(dir, t1, t2);

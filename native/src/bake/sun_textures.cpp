@@ -9,6 +9,7 @@
 #include "convolution/sun_shadow.h"
 #include "geometry/box_tree.h"
 #include "util/parallel.h"
+#include "visibility/shaft.h"
 
 namespace penumbra {
 namespace {
@@ -78,6 +79,10 @@ SunTextures::SunTextures(const Scene& sc, const Settings& s, int threads) {
     cs.n_max = 1;
     for (size_t li = 0; li < sc.lights.size(); ++li) {
         const Light& l = sc.lights[li];
+        if (l.type == LightType::Point) {
+            if (l.radius > 0 && !l.sphere && l.castShadow) lampTextures(sc, s, threads, tree, blockerIds, cs, li);
+            continue;
+        }
         if (l.type != LightType::Sun || !(l.angle > 0) || !l.castShadow) continue;
         const SunFrame f(l.direction);
         const double t = std::tan(0.5 * std::min(l.angle, M_PI * (179.0 / 180.0)));
@@ -148,6 +153,89 @@ SunTextures::SunTextures(const Scene& sc, const Settings& s, int threads) {
             }
         refused_ += refused;
     }
+}
+
+void SunTextures::lampTextures(const Scene& sc, const Settings& s, int threads, const BoxTree& tree,
+                               const std::vector<int>& blockerIds, const ConvolutionSettings& cs, size_t li) {
+    const Light& l = sc.lights[li];
+    std::vector<std::shared_ptr<const SoftShadowTexture>> made(sc.polygons.size());
+    std::atomic<size_t> refused{0};
+    parallelFor(sc.polygons.size(), threads, 16, [&](size_t b, size_t e, int) {
+        for (size_t pi = b; pi < e; ++pi) {
+            const ScenePolygon& p = sc.polygons[pi];
+            // The disk must stand clear in front of the face (then it faces all of it).
+            if (!p.receives || !(dot(l.position - p.geom.v[0], p.normal) > 2 * l.radius)) continue;
+            bool front = true;
+            for (int k = 0; k < p.geom.n; ++k) front = front && dot(l.position - p.geom.v[k], p.normal) > 2 * l.radius;
+            if (!front) continue;
+            // Cycles' disk faces each shaded point. The source is that disk for the face's centre c, seen from c
+            // in the plane through the lamp parallel to the face (an ellipse): source, blocker and receiver
+            // planes are then parallel, where a flat shade is one slab with no shear (the disk itself, tilted
+            // against the face, was refused as too coarse on 47 of 49 faces under a shade). Its points keep
+            // equal weights; the projection stretches the disk by up to (r / d) tan(incidence) across it.
+            const Vec3 c = p.geom.centroid();
+            const Vec3 axis = normalize(c - l.position);
+            const double hl = dot(l.position - c, p.normal);
+            Vec3 a = std::fabs(axis.x) < 0.6 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+            const Vec3 t1 = normalize(cross(axis, a)), t2 = cross(axis, t1);
+            SourceDesc src;
+            Bounds lb, rb;
+            for (int k = 0; k < kLampDiskVertices; ++k) {
+                double phi = 2 * M_PI * k / kLampDiskVertices;
+                Vec3 q = l.position + (t1 * std::cos(phi) + t2 * std::sin(phi)) * l.radius;
+                src.polygon.push_back(c + (q - c) * (hl / dot(q - c, p.normal)));
+                lb.extend(src.polygon.back());
+            }
+            ReceiverDesc rec;
+            for (int k = 0; k < p.geom.n; ++k) {
+                rec.points.push_back(p.geom.v[k]);
+                rb.extend(p.geom.v[k]);
+            }
+            const Shaft shaft(rb, lb);
+            std::vector<BlockerTriangle> blockers;
+            const double lift = 1e-6 * sc.diagonal, gap = 1e-3 * sc.diagonal;
+            bool touching = false;
+            tree.query([&](const Bounds& box) { return shaft.classify(box) != Shaft::Outside; },
+                       [&](int i) {
+                           const ScenePolygon& q = sc.polygons[size_t(blockerIds[size_t(i)])];
+                           if (size_t(blockerIds[size_t(i)]) == pi || q.input == p.input) return;
+                           if (shaft.classify(polygonBox(q)) == Shaft::Outside) return;
+                           bool inFront = false;
+                           double low = HUGE_VAL;
+                           for (int k = 0; k < q.geom.n; ++k) {
+                               double h = dot(q.geom.v[k] - p.geom.v[0], p.normal);
+                               inFront = inFront || h > lift;
+                               low = std::fmin(low, h);
+                           }
+                           if (!inFront) return;
+                           touching = touching || low < gap;
+                           for (int k = 1; k + 1 < q.geom.n; ++k)
+                               blockers.push_back({q.geom.v[0], q.geom.v[k], q.geom.v[k + 1]});
+                       });
+            if (blockers.empty()) continue;
+            if (touching) {
+                ++refused;
+                continue;
+            }
+            try {
+                ConvolutionPlan plan = planFineSoftShadow(src, blockers, rec, cs);
+                if (plan.E_rr > s.eMax || !withinBudget(plan.fftSize, int(plan.slices.size()), s.tMax)) {
+                    ++refused;
+                    continue;
+                }
+                made[pi] = std::make_shared<const SoftShadowTexture>(computeSoftShadow(plan, src, blockers, cs));
+            } catch (const std::domain_error&) {
+                ++refused;
+            }
+        }
+    });
+    slot_[li].assign(sc.polygons.size(), -1);
+    for (size_t pi = 0; pi < made.size(); ++pi)
+        if (made[pi]) {
+            slot_[li][pi] = int(textures_.size());
+            textures_.push_back(std::move(made[pi]));
+        }
+    refused_ += refused;
 }
 
 double SunTextures::visibility(int light, int polygon, const Vec3& p) const {

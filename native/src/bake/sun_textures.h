@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "convolution/soft_shadow.h"
+#include "geometry/box_tree.h"
 #include "scene/scene.h"
 #include "solve/settings.h"
 
@@ -35,6 +36,12 @@ public:
     size_t texels() const;
 
 private:
+    // A POINT lamp with a radius (Cycles' disk facing the shaded point, not the 4.0+ sphere): the same for
+    // each face the lamp stands clear in front of, with the disk facing the face's centre as the source and
+    // the blockers from the shaft between the disk and the face.
+    void lampTextures(const Scene& sc, const Settings& s, int threads, const BoxTree& tree,
+                      const std::vector<int>& blockerIds, const ConvolutionSettings& cs, size_t light);
+    static constexpr int kLampDiskVertices = 48;
     std::vector<std::vector<int>> slot_;  // per light, per polygon: index into textures_ or -1
     std::vector<std::shared_ptr<const SoftShadowTexture>> textures_;
     size_t refused_ = 0;

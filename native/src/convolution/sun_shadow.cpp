@@ -102,12 +102,11 @@ SunStandIn sunStandIn(const SunDesc& sun, const std::vector<BlockerTriangle>& bl
     return out;
 }
 
-namespace {
-
 // The engine's automatic texel is half the narrowest penumbra: under a window frame and a 1 degree sun that
 // read 0.2 off the traced sun where a bar's penumbrae meet, bilinear over a ramp two texels wide.
-ConvolutionPlan planFine(const SunStandIn& s, const std::vector<BlockerTriangle>& blockers,
-                         const ReceiverDesc& receiver) {
+ConvolutionPlan planFineSoftShadow(const SourceDesc& source, const std::vector<BlockerTriangle>& blockers,
+                                   const ReceiverDesc& receiver, const ConvolutionSettings& settings) {
+    const SunStandIn s{source, settings};
     ConvolutionPlan P = planSoftShadow(s.source, blockers, receiver, s.settings);
     if (s.settings.resolution != 0 || P.slices.empty() || !(P.alpha_min * P.L_S > 0)) return P;
     double texel = P.alpha_min * P.L_S / kSunTexelsPerPenumbra;
@@ -125,17 +124,16 @@ ConvolutionPlan planFine(const SunStandIn& s, const std::vector<BlockerTriangle>
     return Q;
 }
 
-}  // namespace
-
 ConvolutionPlan planSunShadow(const SunDesc& sun, const std::vector<BlockerTriangle>& blockers,
                               const ReceiverDesc& receiver, const ConvolutionSettings& settings) {
-    return planFine(sunStandIn(sun, blockers, receiver, settings), blockers, receiver);
+    SunStandIn s = sunStandIn(sun, blockers, receiver, settings);
+    return planFineSoftShadow(s.source, blockers, receiver, s.settings);
 }
 
 SoftShadowTexture computeSunShadow(const SunDesc& sun, const std::vector<BlockerTriangle>& blockers,
                                    const ReceiverDesc& receiver, const ConvolutionSettings& settings) {
     SunStandIn s = sunStandIn(sun, blockers, receiver, settings);
-    return computeSoftShadow(planFine(s, blockers, receiver), s.source, blockers, s.settings);
+    return computeSoftShadow(planFineSoftShadow(s.source, blockers, receiver, s.settings), s.source, blockers, s.settings);
 }
 
 }  // namespace penumbra

@@ -56,6 +56,11 @@ inline constexpr int kSunDiskVertices = 96;  // the regular polygon has 0.07 % l
 SunStandIn sunStandIn(const SunDesc& sun, const std::vector<BlockerTriangle>& blockers, const ReceiverDesc& receiver,
                       const ConvolutionSettings& settings);
 
+// The engine's plan (soft_shadow.h) for any source, with resolution 0 meaning texels of 1/kSunTexelsPerPenumbra
+// of the narrowest penumbra (E_rr and e_max still in half that penumbra): for small sources such as a lamp's disk.
+ConvolutionPlan planFineSoftShadow(const SourceDesc& source, const std::vector<BlockerTriangle>& blockers,
+                                   const ReceiverDesc& receiver, const ConvolutionSettings& settings);
+
 ConvolutionPlan planSunShadow(const SunDesc& sun, const std::vector<BlockerTriangle>& blockers,
                               const ReceiverDesc& receiver, const ConvolutionSettings& settings);
 // V over the receiver: lookupVisibility(texture, P) reads it at any point P. With resolution 0 the plan's E_rr
