@@ -30,7 +30,7 @@ PENUMBRA_COUNTER(kGatherEmitters, "gather_emitters");  // emitting faces the fin
 PENUMBRA_COUNTER(kIterations, "iterations");           // of the solver, over all refinement passes
 PENUMBRA_COUNTER(kRefinePasses, "refine_passes");
 PENUMBRA_COUNTER(kLights, "lights");          // point, spot and sun lamps and the world, when they give light
-PENUMBRA_COUNTER(kSunTextures, "sun_textures");  // faces whose sun shadow is a convolution texture (sun_textures.h)
+PENUMBRA_COUNTER(kSunTextures, "sun_textures");  // face x (sun or lamp with a size) shadows from a texture (sun_textures.h)
 PENUMBRA_COUNTER(kSunRefused, "sun_refused");    // faces with blockers whose texture was refused (rays instead)
 PENUMBRA_COUNTER(kLightRays, "light_rays");   // shadow rays to them for the solve's elements (not the bake's)
 

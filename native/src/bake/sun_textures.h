@@ -1,5 +1,5 @@
 // A sun's soft shadow on each receiving face, from a convolution texture (convolution/sun_shadow.h) where
-// one applies, instead of shadow rays (issue 13 item 2). A sun of a degree casts a penumbra of a few
+// one applies, instead of shadow rays (issue 13 item 2); and a POINT lamp's with a radius (lampTextures). A sun of a degree casts a penumbra of a few
 // centimetres through a window; the rays of lights.h read it at up to light_rays * 2 * angle points (8 for
 // 1 degree at the default 256), the first 8 deciding full light and umbra, so its penumbrae came out as
 // staircases of 8 levels and partly as umbra (0.16 off under a window frame, SunShadow.WindowFrame...).
