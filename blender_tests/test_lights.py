@@ -376,12 +376,3 @@ def test_object_hidden_from_shadow_rays_lets_an_area_light_through(empty_scene, 
     print(f"under the card: Penumbra / Cycles (MIS off) {np.round(ratio, 4)}; shaded / passed "
           f"{shaded[under].mean() / got[under].mean():.3f}")
     assert np.abs(ratio - 1).max() < 0.015
-
-
-def test_diffuse_ray_visibility_is_reported(empty_scene, penumbra):
-    _scene(empty_scene)
-    card = helpers.quad_object("Card", 0.5, 0.5, z=0.6, material=helpers.diffuse_material("Grey", (0.5, 0.5, 0.5)))
-    card.visible_diffuse = False
-    _lamp(empty_scene, "POINT", (0, 0, 1.2), energy=100.0, shadow_soft_size=0.0)
-    report, _, _ = _bake_plane(penumbra, empty_scene)
-    assert any("Card" in w and "Diffuse off is not supported" in w for w in report["warnings"])

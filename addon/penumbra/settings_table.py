@@ -116,7 +116,8 @@ SETTINGS = (
             "Let large flat surfaces lit by a flat light through objects take their shadow as one texture "
             "computed by convolution (Soler & Sillion) instead of a mesh cut finely along the penumbra. Used "
             "only where the texture meets the size, error and time limits (Min Receiver Size, Max Blocker "
-            "Error, Max Texture Time)",
+            "Error, Max Texture Time). Also the soft shadows of suns and point lamps with a size on faces whose "
+            "blockers are flat layers clear of them",
             group="convolution"),
     Setting("a_min", float, 0.15, ("[", 0.0, INF, ")"), "Min Receiver Size",
             "Smallest surface (its bounding-box diagonal, as a fraction of the scene's) that may take a shadow "

@@ -13,6 +13,7 @@
 #include "convolution/fft_convolver.h"
 #include "convolution/raster.h"
 #include "convolution/soft_shadow.h"
+#include "convolution/sun_shadow.h"
 
 namespace py = pybind11;
 
@@ -172,6 +173,59 @@ py::dict softShadowTexture(const py::object& source, const py::object& receiver,
     return r;
 }
 
+// The sun's texture (convolution/sun_shadow.h): the engine's result keys that mean the same for it.
+py::dict sunShadowTexture(const py::object& direction, double angle, const py::object& receiver,
+                          const py::object& blockers, const py::object& resolution, double eMax, int nMax,
+                          int minResolution, int maxResolution, double depthTolerance, bool contactSlabs) {
+    F64 d = asDoubles(direction, "direction", {3});
+    SunDesc sun{{d.data()[0], d.data()[1], d.data()[2]}, angle};
+    ReceiverDesc rec;
+    rec.points = points(asDoubles(receiver, "receiver", {-1, 3}));
+    if (rec.points.size() < 3) throw py::value_error("receiver must have at least 3 vertices");
+    std::vector<BlockerTriangle> tris;
+    {
+        F64 b = asDoubles(blockers, "blockers", {-1, 3, 3});
+        tris.resize(b.shape(0));
+        const double* p = b.data();
+        for (size_t t = 0; t < tris.size(); ++t)
+            for (int k = 0; k < 3; ++k) tris[t][k] = {p[9 * t + 3 * k], p[9 * t + 3 * k + 1], p[9 * t + 3 * k + 2]};
+    }
+    ConvolutionSettings s;
+    if (!resolution.is_none()) {
+        s.resolution = resolution.cast<int>();
+        if (s.resolution < 1) throw py::value_error("resolution must be a positive int or None");
+    }
+    s.e_max = eMax;
+    s.n_max = nMax;
+    s.minResolution = minResolution;
+    s.maxResolution = maxResolution;
+    s.depthTolerance = depthTolerance;
+    s.contactSlabs = contactSlabs;
+    SoftShadowTexture T;
+    {
+        py::gil_scoped_release nogil;
+        T = computeSunShadow(sun, tris, rec, s);
+    }
+    F32 vis({T.n, T.n});
+    std::copy(T.visibility.begin(), T.visibility.end(), vis.mutable_data());
+    F64 m({4, 4});
+    std::copy(T.matrix.begin(), T.matrix.end(), m.mutable_data());
+    py::dict times;
+    times["raster_ms"] = T.times.rasterMs;
+    times["fft_ms"] = T.times.fftMs;
+    times["rest_ms"] = T.times.restMs;
+    py::dict r;
+    r["visibility"] = vis;
+    r["matrix"] = m;
+    r["error"] = T.E_rr;
+    r["alpha_min"] = T.alpha_min;
+    r["sub_blockers"] = T.subBlockers;
+    r["resolution"] = T.n;
+    r["fft_size"] = T.fftSize;
+    r["times"] = times;
+    return r;
+}
+
 py::array_t<float> lookup(const py::dict& result, const py::object& pts) {
     if (!result.contains("visibility") || !result.contains("matrix"))
         throw py::value_error("result must be a dict returned by soft_shadow_texture");
@@ -266,6 +320,18 @@ Returns a dict: visibility (n, n) float32 indexed [t, s]; matrix (4, 4) float64 
 M @ [x, y, z, 1] = [s q, t q, 0, q]; error (E_rr, texels); visibility_error (predicted max |dV|);
 alpha_min; sub_blockers; resolution; fft_size; times {raster_ms, fft_ms, rest_ms}; frame; window;
 slices; contact. Raises ValueError for bad input or a configuration the convolution cannot handle.)doc");
+    m.def("sun_shadow_texture", &sunShadowTexture, py::arg("direction"), py::arg("angle"), py::arg("receiver"),
+          py::arg("blockers"), py::arg("resolution") = py::none(), py::arg("e_max") = 2.0, py::arg("n_max") = 8,
+          py::arg("min_resolution") = 16, py::arg("max_resolution") = 512, py::arg("depth_tolerance") = 1e-3,
+          py::arg("contact_slabs") = true,
+          R"doc(A SUN lamp's soft shadow texture by convolution (convolution/sun_shadow.h, docs/convolution.md).
+
+direction: (3,) the way the light travels; angle: the sun's angular diameter in radians, in (0, 179 degrees].
+receiver: (j, 3) receiver polygon, j >= 3; blockers: (m, 3, 3) triangles.
+resolution: texels per side, or None for 1/16 of the narrowest penumbra within min/max_resolution.
+Returns a dict: visibility (n, n) float32, the cosine-weighted visible share of the sun's disk; matrix;
+error (E_rr in half the narrowest penumbra); alpha_min; sub_blockers; resolution; fft_size; times.
+Read it with lookup(). Raises ValueError for bad input or a configuration the convolution cannot handle.)doc");
     m.def("lookup", &lookup, py::arg("result"), py::arg("points"),
           "Visibility at 3-D points (m, 3) from a soft_shadow_texture result: bilinear, by central projection "
           "from the source centre, clamped to the edge texels; NaN for points not in front of the source centre.");

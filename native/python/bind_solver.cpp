@@ -280,6 +280,8 @@ void bindSolver(py::module_& m) {
     m.attr("SETTINGS") = settingsTable();
     m.attr("EMIT_BACK") = int(kEmitBack);
     m.attr("LIGHT_ONLY") = int(kLightOnly);
+    m.attr("CASTS_NO_SHADOW") = int(kCastsNoShadow);
+    m.attr("NO_DIFFUSE") = int(kNoDiffuse);
 
     py::class_<Solution, std::shared_ptr<Solution>>(m, "Solution")
         .def_property_readonly("report", [](const Solution& s) { return reportDict(s.report(), s.scene().objectNames); })

@@ -29,7 +29,8 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 # at min_size receivers stop once their standard error is within the threshold (44.7M rays, was 68.0M).
 # Stop 22 added the counter "emitter_links" (element links whose source face emits: 8 % of the office's links),
 # and hidden links from sources that emit nothing are no longer kept (1033270 -> 940348 links, 53420 -> 26335
-# cluster links; radiance and lightmap bit-identical). Stop 23: the counters "rays_batched" and "rays_cluster"
+# cluster links; radiance and lightmap bit-identical). Issue 13's sun textures added "sun_textures" and
+# "sun_refused" (0 here: no sun). Stop 23: the counters "rays_batched" and "rays_cluster"
 # (where the rays go), and shafts off a tiled floor no longer count the floor's own tiles (shafts_clear 22813 ->
 # 286378, rays 44.7M -> 40.3M; 249 more links; RMS against a fine solve 4.659 -> 4.660 %). Then partly seen
 # cluster receivers of up to 64 faces share their link by each face's own visible share instead of being opened
@@ -40,7 +41,7 @@ EXPECTED_COUNTS = {
     "clusters": 291, "cluster_links": 31369, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
     "convolution_max_error": 0.0,
     "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0},
-    "gather_emitters": 4, "iterations": 31, "refine_passes": 3, "lights": 0, "light_rays": 0,
+    "gather_emitters": 4, "iterations": 31, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
     "residual": 8.429230176260321e-05, "converged": True, "warnings": 0}
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "golden_office.npz")
 RTOL = 1e-5

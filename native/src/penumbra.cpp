@@ -30,6 +30,8 @@ PENUMBRA_COUNTER(kGatherEmitters, "gather_emitters");  // emitting faces the fin
 PENUMBRA_COUNTER(kIterations, "iterations");           // of the solver, over all refinement passes
 PENUMBRA_COUNTER(kRefinePasses, "refine_passes");
 PENUMBRA_COUNTER(kLights, "lights");          // point, spot and sun lamps and the world, when they give light
+PENUMBRA_COUNTER(kSunTextures, "sun_textures");  // face x (sun or lamp with a size) shadows from a texture (sun_textures.h)
+PENUMBRA_COUNTER(kSunRefused, "sun_refused");    // faces with blockers whose texture was refused (rays instead)
 PENUMBRA_COUNTER(kLightRays, "light_rays");   // shadow rays to them for the solve's elements (not the bake's)
 
 class Stopwatch {
@@ -101,6 +103,13 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     // relative to that light when no face emits (Refiner's scale).
     auto lightSet = std::make_shared<LightSet>(scene, &rays, settings.lightRays);
     LightStats lightStats;
+    if (settings.convolution && !lightSet->empty()) {
+        auto sun = std::make_shared<SunTextures>(scene, settings, sol->threads_);
+        counters.add(kSunTextures, sun->made());
+        counters.add(kSunRefused, sun->refused());
+        if (sun->made() > 0) lightSet->setSunTextures(std::move(sun));
+        rep.seconds["sun_textures"] = clock.lap();
+    }
     if (!lightSet->empty()) {
         double flux = 0, area = 0;
         for (size_t i = 0; i < h.numRoots(); ++i) {
@@ -187,11 +196,13 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         }
         // With gather_rays = 0 the gather takes each leaf's visibility from its links, whose rays meet
         // every polygon; an object hidden from shadow rays (kNoLampShadow) must let the emitters' light
-        // through, so then the gather casts its own shadow rays (light_rays of them, as the lamps do).
+        // through, so then the gather casts its own shadow rays (light_rays of them, as the lamps do). So
+        // must a light that casts no shadow (kCastsNoShadow): one visibility per leaf cannot hold it and
+        // a shadowed emitter at once.
         int gatherRays = settings.gatherRays;
         if (gatherRays == 0)
             for (const ScenePolygon& p : scene.polygons)
-                if (!p.blocksLamps) {
+                if (!p.blocksLamps || !p.castsShadow) {
                     gatherRays = settings.lightRays;
                     break;
                 }

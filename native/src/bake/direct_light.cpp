@@ -35,7 +35,7 @@ DirectLight::DirectLight(const Scene& sc, const RayCaster& rays, int maxRays,
         Emitter* group = nullptr;
         for (Emitter& e : emitters_) {
             const ScenePolygon& q = sc.polygons[size_t(e.polygons[0])];
-            if (q.object == p.object && e.polygons.size() < 64 && q.emission.x == p.emission.x &&
+            if (q.object == p.object && q.castsShadow == p.castsShadow && e.polygons.size() < 64 && q.emission.x == p.emission.x &&
                 q.emission.y == p.emission.y && q.emission.z == p.emission.z && dot(q.normal, p.normal) > 1 - 1e-9 &&
                 std::fabs(dot(p.geom.v[0] - q.geom.v[0], q.normal)) <= 1e-6 * sc.diagonal) {
                 group = &e;
@@ -47,6 +47,7 @@ DirectLight::DirectLight(const Scene& sc, const RayCaster& rays, int maxRays,
             group = &emitters_.back();
             group->normal = p.normal;
             group->E = p.emission;
+            group->castsShadow = p.castsShadow;
         }
         group->polygons.push_back(int(i));
         group->occluders.push_back(occluder);
@@ -142,7 +143,7 @@ Rgb DirectLight::irradiance(const Vec3& p, const Vec3& n, int receiver, DirectSt
         }
         if (!(F > 0)) continue;
         if (stats) ++stats->pairs;
-        if (maxRays_ == 0) {
+        if (maxRays_ == 0 || !e.castsShadow) {
             sum += e.E * F;
             continue;
         }

@@ -27,6 +27,7 @@ public:
     Rgb irradiance(const Vec3& p, const Vec3& n, int receiver, DirectStats* stats = nullptr) const;
     size_t emitters() const { return emitters_.size(); }
     // False with maxRays = 0: irradiance() is then unoccluded, and the caller supplies the visibility.
+    // (An emitter that casts no shadow is unoccluded whatever maxRays is.)
     bool castsRays() const { return maxRays_ > 0; }
 
 private:
@@ -43,6 +44,7 @@ private:
         Bounds box;
         double size = 0;             // box diagonal
         double area = 0;
+        bool castsShadow = true;     // false: the light's Cast Shadow is off, nothing hides it
     };
     // Weighted visible fraction of the group from p over about `count` of its points.
     double visibility(const Emitter& e, const Vec3& p, const Vec3& n, const Vec3& from, int count,

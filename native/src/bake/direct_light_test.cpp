@@ -108,6 +108,30 @@ TEST(FinalGather, CardHiddenFromShadowRaysLetsTheLampThrough) {
     }
 }
 
+// The same card under a lamp whose Cast Shadow is off (kCastsNoShadow): the card hides nothing, at every
+// bake point (the final gather casts no rays to it) and in the elements' light (its element links are taken
+// as unoccluded), where Cycles' bake under such a card gives the bare light (blender_tests/test_ray_visibility.py).
+TEST(FinalGather, LampThatCastsNoShadowShinesThroughTheCard) {
+    const double rho = 0.5, E = 10;
+    TestScene t = lampOverFloor(rho, true, 0.6);
+    t.flags[1] |= kCastsNoShadow;
+    for (bool gather : {true, false}) {
+        Settings s;
+        s.finalGather = gather;
+        auto sol = solve(t.input(), s, nullptr);
+        double worst = 0;
+        for (double x : {-0.3, 0.0, 0.25})
+            for (double y : {-0.2, 0.1}) {
+                float pt[3] = {float(x), float(y), 0}, nrm[3] = {0, 0, 1};
+                double L = sol->radiance(pt, nrm, 1)[0];
+                double bare = rho * E * pointToPolygonFormFactor({pt[0], pt[1], 0}, {0, 0, 1}, lampPart(-0.5, 0.5)) / M_PI;
+                worst = std::max(worst, std::fabs(L / bare - 1));
+            }
+        // Exact with the gather; the elements' light is their mean over each element.
+        EXPECT_LT(worst, gather ? 1e-3 : 0.03) << "final gather " << gather;
+    }
+}
+
 // Two closed rooms stacked 1 mm apart with their walls in the same planes; the lamp is in the lower
 // one. Nothing reaches the sealed upper room, with or without the final gather (the display used to
 // blend the lower walls' elements into the upper walls' points across the shared plane).

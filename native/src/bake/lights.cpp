@@ -132,14 +132,24 @@ Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, LightStats* 
 }
 
 Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const {
+    return irradianceOn(-1, p, n, maxRays, shift, stats);
+}
+
+Rgb LightSet::irradianceOn(int polygon, const Vec3& p, const Vec3& n) const {
+    static const double none[2] = {0, 0};
+    return irradianceOn(polygon, p, n, -1, none, nullptr);
+}
+
+Rgb LightSet::irradianceOn(int polygon, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
+                           LightStats* stats) const {
     int m = maxRays < 0 ? maxRays_ : powerOfTwoBelow(std::clamp(maxRays, 1, kMaxRays));
     Rgb sum;
-    for (const Light& l : sc_.lights) sum += one(l, p, n, m, shift, stats);
+    for (size_t i = 0; i < sc_.lights.size(); ++i) sum += one(sc_.lights[i], int(i), polygon, p, n, m, shift, stats);
     return sum;
 }
 
-Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
-                  LightStats* stats) const {
+Rgb LightSet::one(const Light& l, int index, int polygon, const Vec3& p, const Vec3& n, int maxRays,
+                  const double shift[2], LightStats* stats) const {
     const bool shadows = rays_ && l.castShadow;
     const Vec3 from = p + n * lift_;
     // Per thread, allocated once: arrays of kMaxRays Vec3 on the stack would be zeroed (Vec3's
@@ -196,6 +206,12 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, con
                 return E * clearWeight(1);
             }
             if (!shadows && !spot) return E;
+            if (!spot && sunTextures_) {
+                // A face with a texture (sun_textures.h) sees the whole disk; V is its visible share by area,
+                // as the points below count it.
+                double v = sunTextures_->visibility(index, polygon, p);
+                if (std::isfinite(v)) return E * v;
+            }
             int count = samplesFor(maxRays, 2 * l.radius / std::sqrt(d2));
             Vec3 t1, t2;
             frame(dir, t1, t2);
@@ -233,6 +249,12 @@ Rgb LightSet::one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, con
             double t = std::tan(0.5 * std::min(l.angle, M_PI * (179.0 / 180.0)));
             double sinEdge = t / std::sqrt(1 + t * t);  // of the disk's angular radius
             if (c0 <= -sinEdge) return {};
+            if (sunTextures_ && shadows) {
+                // A face with a texture sees the whole disk above its horizon (sun_textures.h), where the
+                // closed form holds; V is the cosine-weighted visible share.
+                double v = sunTextures_->visibility(index, polygon, p);
+                if (std::isfinite(v)) return l.value * (sunDiskFactor(l.angle) * c0 * v);
+            }
             int count = samplesFor(maxRays, l.angle);
             Vec3 t1, t2;
             frame(w0, t1, t2);
@@ -311,7 +333,7 @@ Rgb LightSet::elementIrradiance(const Element& e, const Vec3& n, LightStats* sta
         h *= 0xBF58476D1CE4E5B9ull;
         h ^= h >> 32;
         double shift[2] = {double(h & 0xFFFFFFFFu) / 4294967296.0, double(h >> 32) / 4294967296.0};
-        sum += irradiance(pts[k], n, m, shift, stats);
+        sum += irradianceOn(e.polygon, pts[k], n, m, shift, stats);
     }
     return sum / double(np);
 }

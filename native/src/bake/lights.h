@@ -6,8 +6,10 @@
 // element's mean of it as the light arriving there directly (LightSet::elementIrradiance), so that
 // what the surfaces reflect of it travels on through the hierarchy.
 #pragma once
+#include <memory>
 #include <vector>
 
+#include "bake/sun_textures.h"
 #include "hierarchy/element.h"
 #include "scene/scene.h"
 #include "visibility/ray_caster.h"
@@ -31,6 +33,12 @@ public:
     Rgb irradiance(const Vec3& p, const Vec3& n, int maxRays = -1, LightStats* stats = nullptr) const;
     // The same with the sample set turned by `shift` in [0, 1)^2 (a toroidal shift of the Sobol' net).
     Rgb irradiance(const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const;
+    // The same at a point of face `polygon`, whose suns' shadows come from their textures where it has them.
+    Rgb irradianceOn(int polygon, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
+                     LightStats* stats) const;
+    Rgb irradianceOn(int polygon, const Vec3& p, const Vec3& n) const;
+    // Suns' soft shadows on the faces that have a texture (null: rays everywhere).
+    void setSunTextures(std::shared_ptr<const SunTextures> t) { sunTextures_ = std::move(t); }
     // The mean over an element of a receiving face (quadrature points, fewer rays, each point's sample
     // set turned by a fixed offset from the element's key): what the solver adds to the element's
     // gathered irradiance.
@@ -41,11 +49,13 @@ public:
     static constexpr int kMaxRays = 1024;
 
 private:
-    Rgb one(const Light& l, const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const;
+    Rgb one(const Light& l, int index, int polygon, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
+            LightStats* stats) const;
     const Scene& sc_;
     const RayCaster* rays_;
     int maxRays_;
     double lift_, far_;
+    std::shared_ptr<const SunTextures> sunTextures_;
 };
 
 // The fraction of a spot's intensity sent at angle acos(cosAxis) from its axis: zero outside the cone,

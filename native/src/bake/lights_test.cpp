@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "geometry/form_factor.h"
 #include "penumbra.h"
 #include "testing/scenes.h"
 #include "util/error.h"
@@ -356,6 +357,62 @@ TEST(Lights, LightsAloneAreEnoughAndBadLightsAreRefused) {
     l = pointLight({0, 0, NAN}, 1, 0);
     in.lights = {l};
     EXPECT_THROW(solve(in, Settings{}, nullptr), InputError);
+}
+
+// Ray Visibility > Diffuse off on a card (kNoDiffuse) between a sunlit floor and a (nearly black) panel facing
+// it from above: the card still casts the sun's shadow on the floor, but the floor's reflected light reaches the
+// panel through it and the card's own sunlit top reflects nothing onto the panel. So the panel's
+// irradiance is the floor's radiosity rho S outside the card's shadow (straight under it) times the exact
+// form factors: E = rho S (F(floor) - F(shadow)). With the card seen by diffuse rays it hides that light.
+TEST(Lights, CardHiddenFromDiffuseRaysLetsBouncedLightThrough) {
+    auto scene = [](uint8_t flag) {
+        // The floor in 0.5 m faces, so that the card's shadow is whole faces: the floor's radiosity is then
+        // exact, face by face, whatever the refinement.
+        TestScene t;
+        t.names = {"Floor", "Card", "Panel"};
+        for (int i = -10; i < 10; ++i)
+            for (int j = -10; j < 10; ++j) {
+                double x = 0.5 * i, y = 0.5 * j;
+                t.quad({x, y, 0}, {x + 0.5, y, 0}, {x + 0.5, y + 0.5, 0}, {x, y + 0.5, 0}, {kRho, kRho, kRho}, {});
+            }
+        t.quad({-0.5, -0.5, 1}, {0.5, -0.5, 1}, {0.5, 0.5, 1}, {-0.5, 0.5, 1}, {0.8, 0.8, 0.8}, {}, flag, 1);
+        t.quad({-0.5, -0.5, 1}, {-0.5, 0.5, 1}, {0.5, 0.5, 1}, {0.5, -0.5, 1}, {0.8, 0.8, 0.8}, {}, flag, 1);
+        // Hidden from shadow rays, so the sun reaches the floor and the card past it; nearly black, so the
+        // floor's radiosity is its own reflected sunlight alone.
+        t.quad({-1, -1, 2}, {-1, 1, 2}, {1, 1, 2}, {1, -1, 2}, {0.01, 0.01, 0.01}, {}, kNoLampShadow, 2);
+        return t;
+    };
+    Light sun;
+    sun.type = LightType::Sun;
+    sun.value = {1, 1, 1};
+    auto polygon = [](double h, double z) {
+        Polygon g;
+        g.push({-h, -h, z});
+        g.push({h, -h, z});
+        g.push({h, h, z});
+        g.push({-h, h, z});
+        return g;
+    };
+    double worst[2] = {0, 0};
+    for (uint8_t flag : {uint8_t(kNoDiffuse), uint8_t(0)}) {
+        auto sol = solveLit(scene(flag), {sun});
+        for (double x : {-0.6, 0.0, 0.3})
+            for (double y : {-0.4, 0.2}) {
+                float p[3] = {float(x), float(y), 2}, n[3] = {0, 0, -1};
+                double E = sol->radiance(p, n, 1, true)[0] * M_PI;
+                Vec3 P{x, y, 2}, N{0, 0, -1};
+                double expect = kRho * (pointToPolygonFormFactor(P, N, polygon(5, 0)) -
+                                        pointToPolygonFormFactor(P, N, polygon(0.5, 0)));
+                worst[flag ? 0 : 1] = std::max(worst[flag ? 0 : 1], std::fabs(E / expect - 1));
+            }
+        // The card itself is still lit (its top by the sun) and baked.
+        float top[3] = {0, 0, 1}, up[3] = {0, 0, 1};
+        EXPECT_NEAR(sol->radiance(top, up, 1, true)[0] * M_PI, 1.0, 0.05) << "flag " << int(flag);
+    }
+    std::printf("panel irradiance against rho S (F(floor) - F(shadow)): hidden from diffuse rays %.4f, seen %.4f\n",
+                worst[0], worst[1]);
+    EXPECT_LT(worst[0], 0.02);
+    EXPECT_GT(worst[1], 0.1);
 }
 
 }  // namespace

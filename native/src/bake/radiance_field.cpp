@@ -253,7 +253,7 @@ Rgb RadianceField::radiance(const Vec3& p, const Vec3& n, bool irradiance, const
         Vec3 q = len > nudge ? p + toward * (nudge / len) : p;
         const Rgb rho = irradiance ? Rgb{1, 1, 1} : sp.rho;
         out += mul(mul(rho, vis), direct_->irradiance(q, sp.normal, poly)) * (1.0 / M_PI);
-        if (lights_) out += mul(rho, lights_->irradiance(q, sp.normal)) * (1.0 / M_PI);
+        if (lights_) out += mul(rho, lights_->irradianceOn(poly, q, sp.normal)) * (1.0 / M_PI);
     }
     return out;
 }

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "hierarchy/cluster.h"
+#include "hierarchy/predicates.h"
 #include "scene/scene.h"
 
 namespace penumbra {
@@ -48,7 +49,9 @@ public:
     const ClusterTree& clusters() const { return clusters_; }
     // Refreshes the clusters' emission from the polygons' current radiosities (their root elements).
     void updateClusterFlux() {
-        clusters_.updateFlux(scene_, [&](int p) { return (*this)[size_t(p)].B; });
+        clusters_.updateFlux(scene_, [&](int p) {
+            return bouncesLight(scene_.polygons[size_t(p)]) ? (*this)[size_t(p)].B : Rgb{};
+        });
     }
     // Faces whose front is covered at contact (RayCaster::buriedFaces): no cluster link lights them.
     void setBuried(std::vector<char> buried) { buried_ = std::move(buried); }

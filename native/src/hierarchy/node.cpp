@@ -75,7 +75,7 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
         for (int k = c.begin; k < c.end; ++k) {
             int p = ct.polygons()[size_t(k)];
             const Element& e = h[size_t(p)];
-            if (maxComponent(e.B) <= 0) continue;
+            if (maxComponent(e.B) <= 0 || !bouncesLight(sc.polygons[size_t(p)])) continue;
             sum += e.B * elementKernel(e, sc.polygons[size_t(p)].normal, y, n);
         }
         return sum;
@@ -118,7 +118,7 @@ double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
             int p = ct.polygons()[size_t(k)];
             const Element& e = h[size_t(p)];
             double b = maxComponent(e.B);
-            if (b <= 0) continue;
+            if (b <= 0 || !bouncesLight(scene.polygons[size_t(p)])) continue;
             Vec3 dj = rc - e.center;
             double rj = length(dj);
             double cj = rj > 0 ? std::min(1.0, std::max(0.0, dot(scene.polygons[size_t(p)].normal, dj) / rj +

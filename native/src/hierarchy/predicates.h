@@ -13,8 +13,11 @@ inline bool emits(const ScenePolygon& p) { return maxComponent(p.emission) > 0; 
 // Gathers light: a receiving face (not a light-only emitter) that reflects some of what arrives.
 inline bool receivesLight(const ScenePolygon& p) { return p.receives && maxComponent(p.rho) > 0; }
 
-// Has light to give: it emits, or it reflects.
-inline bool sendsLight(const ScenePolygon& p) { return emits(p) || maxComponent(p.rho) > 0; }
+// Its radiosity reaches others: diffuse rays meet it (Ray Visibility > Diffuse on), or it emits.
+inline bool bouncesLight(const ScenePolygon& p) { return p.diffuseVisible || emits(p); }
+
+// Has light to give: it emits, or it reflects where diffuse rays see it.
+inline bool sendsLight(const ScenePolygon& p) { return emits(p) || (maxComponent(p.rho) > 0 && p.diffuseVisible); }
 
 // A cluster is in its far field when its radius is at most kFarField of the distance. There the
 // centre's direction stands for every face's to within about 12 degrees (node.cpp's irradiance

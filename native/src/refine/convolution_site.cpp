@@ -323,6 +323,9 @@ ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& sit
 // Test 3, blocker selection (§5.2): occluders whose boxes cross the shaft between source and receiver.
 ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
     const Scene& sc = h_.scene();
+    // A light whose Cast Shadow is off has nothing to convolve (kCastsNoShadow).
+    for (int p : site.faces)
+        if (!sc.polygons[size_t(p)].castsShadow) return Refusal::NoBlocker;
     Shaft shaft(site.rb, site.fb);
     std::vector<int> candidates = rays_.occludersInShaft(shaft);
     std::sort(candidates.begin(), candidates.end());

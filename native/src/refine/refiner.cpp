@@ -303,6 +303,12 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
     for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
     for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
+    // A light whose Cast Shadow is off is seen whole (kCastsNoShadow).
+    if (!sc.polygons[size_t(s.polygon)].castsShadow) {
+        l.V = 1;
+        l.F = l.Fmean;
+        return;
+    }
     // The rays that count start lift_ in front of the receiver and end lift_ in front of the source
     // (see below), so nothing lying in or behind either plane can block them.
     RayCaster::HalfSpace planes[2] = {lowestPlane(r, sc.polygons[r.polygon].normal),
@@ -354,7 +360,8 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
         // Counted, such rays cut that light a second time: objects resting on a floor came out 5-10 %
         // dark.
         char vis[256];
-        rays_.visiblePairs(from, to, n, vis);
+        // Reflected light passes faces hidden from diffuse rays; an emitter's light is a shadow ray's.
+        rays_.visiblePairs(from, to, n, vis, !emits(si));
         counters_.add(kRays, size_t(n));
         if (batches > 0) counters_.add(kRaysBatched, size_t(n));
         for (int i = 0; i < n; ++i) {
@@ -603,7 +610,7 @@ bool Refiner::shareByFaces(int ri, int si) {
             toFront[n++] = to[i];
         }
         if (n == 0) continue;
-        share[size_t(j)] = float(rays_.unoccludedFraction(from, toFront, n));
+        share[size_t(j)] = float(rays_.unoccludedFraction(from, toFront, n, !emits(si)));
         counters_.add(kRays, size_t(n));
         counters_.add(kRaysCluster, size_t(n));
     }
@@ -652,7 +659,7 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
         counters_.add(kShaftsClear);
         l.V = 1;
     } else {
-        l.V = float(rays_.unoccludedFraction(from, to, n));
+        l.V = float(rays_.unoccludedFraction(from, to, n, !emits(si)));
         counters_.add(kRays, size_t(n));
         counters_.add(kRaysCluster, size_t(n));
     }

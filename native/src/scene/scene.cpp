@@ -154,6 +154,8 @@ Scene buildScene(const SceneInput& in) {
         if (f & kLightOnly) sp.rho = {};
         sp.occludes = !(f & kLightOnly) && !back;
         sp.blocksLamps = !(f & kNoLampShadow);
+        sp.castsShadow = !(f & kCastsNoShadow);
+        sp.diffuseVisible = !(f & kNoDiffuse);
         sp.object = in.objectIndex[p];
         sp.input = int(p);
         sp.surface = findRoot(in.polygons[p * 4]);

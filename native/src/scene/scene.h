@@ -18,6 +18,15 @@ enum PolygonFlags : uint8_t {
     // links (which carry the reflected light too, and the direct light only into the bounce) still
     // see it as a blocker: Cycles' diffuse rays meet it.
     kNoLampShadow = 4,
+    // An AREA light whose Cast Shadow is off: its light passes every object, at each texel (the final
+    // gather casts no rays to it) and along the element links it sends on (the refiner takes them as
+    // unoccluded). Cluster links from a cluster holding it still see blockers.
+    kCastsNoShadow = 8,
+    // Blender's Ray Visibility > Diffuse off: diffuse bounce rays pass through it. It sends none of the light
+    // it reflects (only its emission, if any), and the links between other faces that carry reflected light
+    // (from sources that do not emit) see through it; it still receives light and blocks the lamps', the
+    // emitters' and the world's.
+    kNoDiffuse = 16,
 };
 
 // A Blender lamp that is not a polygon, in Cycles' units (blender-facts.md section 1). Point and spot:
@@ -72,6 +81,8 @@ struct ScenePolygon {
     bool receives = true;   // takes part as a receiver and reflector
     bool occludes = true;   // put in the ray-tracing scene (a back-side copy shares its twin's triangles)
     bool blocksLamps = true;  // and in the one the lamps' shadow rays use (kNoLampShadow clears it)
+    bool castsShadow = true;  // its light is blocked by anything (kCastsNoShadow clears it)
+    bool diffuseVisible = true;  // diffuse bounce rays meet it (kNoDiffuse clears it)
     int object = -1;
     int input = -1;         // index of the input polygon it came from
     // Faces joined through shared input vertices, transitively: one connected surface. The display

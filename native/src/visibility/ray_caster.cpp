@@ -70,10 +70,26 @@ RayCaster::RayCaster(const Scene& scene) {
         attach(lampScene_, lampTris);
         rtcCommitScene(lampScene_);
     }
+    // And one for rays carrying reflected light, when some polygon is hidden from diffuse rays.
+    std::vector<unsigned> diffuseTris;
+    bool anyHidden = false;
+    for (size_t t = 0; t < triPolygon_.size(); ++t) {
+        if (scene.polygons[size_t(triPolygon_[t])].diffuseVisible)
+            diffuseTris.insert(diffuseTris.end(), tris.begin() + long(3 * t), tris.begin() + long(3 * t + 3));
+        else
+            anyHidden = true;
+    }
+    if (anyHidden) {
+        diffuseScene_ = rtcNewScene(device_);
+        numDiffuseTriangles_ = diffuseTris.size() / 3;
+        attach(diffuseScene_, diffuseTris);
+        rtcCommitScene(diffuseScene_);
+    }
 }
 
 RayCaster::~RayCaster() {
     if (lampScene_) rtcReleaseScene(lampScene_);
+    if (diffuseScene_) rtcReleaseScene(diffuseScene_);
     if (scene_) rtcReleaseScene(scene_);
     if (device_) rtcReleaseDevice(device_);
 }
@@ -211,20 +227,22 @@ void RayCaster::visibleMask(const Vec3& from, const Vec3* to, int n, char* visib
                 [&](int k, bool v) { visible[k] = v ? 1 : 0; });
 }
 
-void RayCaster::visiblePairs(const Vec3* from, const Vec3* to, int n, char* visible) const {
-    if (numTriangles_ == 0) {
+void RayCaster::visiblePairs(const Vec3* from, const Vec3* to, int n, char* visible, bool diffuseRay) const {
+    const bool diffuse = diffuseRay && diffuseScene_;
+    if ((diffuse ? numDiffuseTriangles_ : numTriangles_) == 0) {
         std::fill(visible, visible + std::max(n, 0), char(1));
         return;
     }
-    castPackets(scene_, n, [&](int k) { return std::make_pair(from[k], to[k]); },
+    castPackets(diffuse ? diffuseScene_ : scene_, n, [&](int k) { return std::make_pair(from[k], to[k]); },
                 [&](int k, bool v) { visible[k] = v ? 1 : 0; });
 }
 
-double RayCaster::unoccludedFraction(const Vec3* from, const Vec3* to, int n) const {
+double RayCaster::unoccludedFraction(const Vec3* from, const Vec3* to, int n, bool diffuseRay) const {
     if (n <= 0) return 1.0;
-    if (numTriangles_ == 0) return 1.0;
+    const bool diffuse = diffuseRay && diffuseScene_;
+    if ((diffuse ? numDiffuseTriangles_ : numTriangles_) == 0) return 1.0;
     int count = 0;
-    castPackets(scene_, n, [&](int k) { return std::make_pair(from[k], to[k]); },
+    castPackets(diffuse ? diffuseScene_ : scene_, n, [&](int k) { return std::make_pair(from[k], to[k]); },
                 [&](int, bool v) { count += v; });
     return double(count) / n;
 }
