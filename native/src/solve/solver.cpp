@@ -80,7 +80,11 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
                 for (size_t i = lo; i < hi; ++i) {
                     double v = links[i].V;
                     if (linkFaceV_[i]) v = (*linkFaceV_[i])[size_t(polyPos_[p] - ct[c].begin)];
-                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * (unoccluded_ ? 1.0 : v);
+                    if (unoccluded_)
+                        v = 1.0;
+                    else if (v <= 0)
+                        continue;  // a face that sees none of the source (many under a shared link)
+                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * v;
                 }
             }
             down[p] = sum;
