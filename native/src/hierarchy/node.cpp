@@ -56,6 +56,11 @@ Vec3 nodeCenter(const Hierarchy& h, int node) {
     return h[size_t(node)].center;
 }
 
+uint64_t nodeKey(const Hierarchy& h, int node) {
+    if (isClusterNode(node)) return h.clusters()[clusterIndex(node)].key;
+    return h[size_t(node)].key;
+}
+
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     const Scene& sc = h.scene();
     if (!isClusterNode(source)) {

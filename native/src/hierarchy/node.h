@@ -9,6 +9,8 @@ namespace penumbra {
 
 Bounds nodeBox(const Hierarchy& h, int node);
 Vec3 nodeCenter(const Hierarchy& h, int node);
+// A node's identity independent of creation order (an element's or a cluster's key).
+uint64_t nodeKey(const Hierarchy& h, int node);
 
 // Irradiance at y from `source`. An element is a small emitter at its centre: B A cos cos_y /
 // (pi r^2 + A), the + A keeping it finite when r is small. A cluster emits from its centre, each

@@ -589,9 +589,8 @@ bool Refiner::shareByFaces(int ri, int si) {
     int k = c.end - c.begin;
     if (k > kMaxSharedFaces) return false;
     const Scene& sc = h_.scene();
-    auto key = [&](int node) { return isClusterNode(node) ? ct[clusterIndex(node)].key : h_[node].key; };
     std::vector<float> share(size_t(k), 0.0f);
-    uint64_t seed = key(ri) ^ (key(si) * 0x9E3779B97F4A7C15ull) ^ 0x5bd1e995ull;
+    uint64_t seed = nodeKey(h_, ri) ^ (nodeKey(h_, si) * 0x9E3779B97F4A7C15ull) ^ 0x5bd1e995ull;
     for (int j = 0; j < k; ++j) {
         int p = ct.polygons()[size_t(c.begin + j)];
         const ScenePolygon& sp = sc.polygons[size_t(p)];
@@ -616,7 +615,7 @@ bool Refiner::shareByFaces(int ri, int si) {
     }
     counters_.add(kSharedClusterLinks);
     std::lock_guard<std::mutex> lock(faceVis_.mutex);
-    faceVis_.shares[{key(ri), key(si)}] = std::move(share);
+    faceVis_.shares[{nodeKey(h_, ri), nodeKey(h_, si)}] = std::move(share);
     return true;
 }
 
@@ -642,12 +641,9 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
     l.receiver = ri;
     l.source = si;
     l.F = l.Fmean = l.Fspread = 0;  // cluster transfers are evaluated from the faces at gather time
-    auto key = [&](int node) {
-        return isClusterNode(node) ? h_.clusters()[clusterIndex(node)].key : h_[node].key;
-    };
     int n = std::min(strata_ * strata_, 256);
     Vec3 from[256], to[256];
-    uint64_t seed = key(ri) ^ (key(si) * 0x9E3779B97F4A7C15ull);
+    uint64_t seed = nodeKey(h_, ri) ^ (nodeKey(h_, si) * 0x9E3779B97F4A7C15ull);
     // No face of one end turned toward the other: nothing flows, no link.
     if (!sampleNode(ri, nodeCenter(h_, si), true, seed, n, from)) return false;
     if (!sampleNode(si, nodeCenter(h_, ri), false, seed * 31 + 7, n, to)) return false;

@@ -23,9 +23,7 @@ void Solver::prepareClusters(const std::vector<Link>& links) {
         clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
         if (faceVis_ && !faceVis_->shares.empty())
             for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
-                int src = links[i].source;
-                uint64_t sk = isClusterNode(src) ? ct[clusterIndex(src)].key : h_[src].key;
-                auto it = faceVis_->shares.find({ct[clusterIndex(r)].key, sk});
+                auto it = faceVis_->shares.find({nodeKey(h_, r), nodeKey(h_, links[i].source)});
                 if (it != faceVis_->shares.end() && links[i].partial()) linkFaceV_[i] = &it->second;
             }
     }
