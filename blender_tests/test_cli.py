@@ -72,11 +72,12 @@ def test_cli_uses_the_panel_settings_and_the_options_override_them(empty_scene, 
     assert not (out / "baked.blend").exists()
     out = tmp_path / "b"
     r = _run(blend, "--out", str(out), "--quality", "draft", "--resolution", "16", "--targets", "color",
-             "--epsilon", "0.004", "--visibility-rays", "4", "--refine-passes", "1")
+             "--epsilon", "0.004", "--visibility-rays", "4", "--refine-passes", "1", "--patch-texels", "1.5")
     assert r.returncode == 0, r.stderr[-2000:]
     report = json.loads((out / "report.json").read_text())
     s = report["settings"]
     assert (s["resolution"], s["targets"], s["epsilon"], s["visibility_rays"]) == (16, ["COLOR_ATTRIBUTE"], 0.004, 4)
+    assert s["patch_texels"] == 1.5
     assert report["refine_passes"] == 1
     assert not list(out.glob("*.exr"))                           # color attributes only
 

@@ -282,3 +282,39 @@ def test_shadow_texture_settings_reach_the_solver(empty_scene):
     off = _last(empty_scene)
     assert off["settings"]["convolution"] is False and off["convolution_tried"] == 0
     assert off["elements"] > 3 * on["elements"]                   # measured at Draft: 3285 against 917
+
+
+def _plane_under_a_small_lamp(side):
+    """A side x side floor, a black 0.2 m card at 0.5 m and a 0.2 m square area light at 1 m: the card's umbra is
+    the 0.2 m square under it (every point there sees the card hide the whole lamp)."""
+    helpers.quad_object("Floor", side / 2, side / 2, material=helpers.diffuse_material("FloorMat", (0.5,) * 3))
+    helpers.quad_object("Card", 0.1, 0.1, z=0.5, material=helpers.diffuse_material("CardMat", (0.0,) * 3))
+    helpers.area_light("Lamp", "SQUARE", 0.2, energy=20.0, location=(0, 0, 1))
+
+
+def test_patch_texels_resolves_what_the_lightmap_shows_on_a_large_floor(empty_scene):
+    """On a 20 m floor min_size 0.01 is 28 cm, larger than the umbra: the texels under the card came out grey. With
+    patch_texels 2 the floor is cut to 2 of its 2 cm texels and the umbra's texels are dark, against the lit
+    texels beside it; bad values are refused by name. Convolution is off: its soft shadow texture (3.9 cm texels
+    here) would show this umbra whatever the elements."""
+    _plane_under_a_small_lamp(20.0)
+    s = {"resolution": 1024, "targets": {"LIGHTMAP"}, "epsilon": 0.002, "convolution": False}
+    import penumbra
+    ratios, elements = {}, {}
+    for texels in (0.0, 2.0):
+        report = penumbra.bake(empty_scene, patch_texels=texels, **s)
+        assert report["settings"]["patch_texels"] == texels
+        px = helpers.image_pixels(bpy.data.images["Penumbra_Floor"])[..., 0]
+        mask, pos = helpers.texel_world_positions(bpy.data.objects["Floor"], "PenumbraLightmap", 1024, 1024)
+        r = np.hypot(pos[..., 0], pos[..., 1])
+        umbra = mask & (np.abs(pos[..., 0]) < 0.06) & (np.abs(pos[..., 1]) < 0.06)
+        lit = mask & (r > 0.5) & (r < 0.6)
+        assert umbra.sum() > 20 and lit.sum() > 100
+        ratios[texels] = px[umbra].mean() / px[lit].mean()
+        elements[texels] = report["elements"]
+    assert ratios[0.0] > 0.1                        # measured 0.165: the umbra is blended into 28 cm elements
+    assert ratios[2.0] < 0.02                       # exact: 0 (the lamp is wholly hidden there); measured 0.0
+    assert elements[2.0] > 5 * elements[0.0]        # measured 12935 against 1607
+    for bad in (-1, 65, float("nan"), True):
+        with pytest.raises(ValueError, match="patch_texels"):
+            penumbra.bake(empty_scene, patch_texels=bad, **s)

@@ -91,6 +91,9 @@ def parser():
     ap.add_argument("--resolution", type=_ranged(int, 8, MAX_RESOLUTION), metavar="N",
                     help=f"lightmap width and height in pixels, at most {MAX_RESOLUTION}")
     ap.add_argument("--margin", type=_ranged(int, 0, 64), metavar="N", help="pixels filled around UV islands")
+    ap.add_argument("--patch-texels", dest="patch_texels", type=_ranged(float, 0, 64), metavar="X",
+                    help="cut lightmapped surfaces no finer than X of their texels instead of --min-size of the "
+                         "scene (0: off, the default)")
     ap.add_argument("--uv-map", metavar="NAME",
                     help="existing UV map for the lightmaps (default: create and unwrap 'PenumbraLightmap')")
     sel = ap.add_mutually_exclusive_group()
@@ -125,7 +128,7 @@ def settings_from(panel, args):
     if args.quality:
         s.update(settings_table.PRESETS[args.quality.upper()])
     for key in ("resolution", "margin", "uv_map", "selection_only", "irradiance",
-                "instance_lightmaps") + settings_table.SOLVER_KEYS:
+                "instance_lightmaps", "patch_texels") + settings_table.SOLVER_KEYS:
         v = getattr(args, key)
         if v is not None:
             s[key] = v

@@ -90,6 +90,7 @@ class _Main:
         sub.active = s.lightmap
         sub.prop(s, "resolution")
         sub.prop(s, "margin")
+        sub.prop(s, "patch_texels")
         ob = context.active_object
         if ob is not None and ob.type == "MESH":
             sub.prop_search(s, "uv_map", ob.data, "uv_layers", text="UV Map")

@@ -87,6 +87,11 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         name="Margin",
         description="Pixels filled around each UV island so that filtering and mipmaps do not pull in black "
                     "from outside the island", default=4, min=0, max=64)
+    patch_texels: FloatProperty(
+        name="Smallest Patch (texels)",
+        description="Cut surfaces that get a lightmap no finer than this many of its texels, instead of the "
+                    "Smallest Patch fraction of the scene: for halls and large planes whose lightmaps show more "
+                    "than 1 % of the scene's size. 0: off", default=0.0, min=0.0, max=64.0, soft_max=8.0)
     irradiance: BoolProperty(
         name="Irradiance Only",
         description="Bake the light arriving at each surface (Cycles' Diffuse Direct + Indirect without Color) "
@@ -119,7 +124,7 @@ class PenumbraSettings(bpy.types.PropertyGroup):
         s = {"resolution": self.resolution, "margin": self.margin, "targets": targets,
              "uv_map": self.uv_map or None, "selection_only": self.selection_only,
              "output_dir": self.output_dir or None, "irradiance": self.irradiance,
-                "instance_lightmaps": self.instance_lightmaps}
+                "instance_lightmaps": self.instance_lightmaps, "patch_texels": self.patch_texels}
         s.update((key, getattr(self, key)) for key in settings_table.SOLVER_KEYS)
         return s
 

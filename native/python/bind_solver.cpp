@@ -400,7 +400,7 @@ void bindSolver(py::module_& m) {
         "solve",
         [](py::object vertices, py::object polygons, py::object reflectance, py::object emission,
            py::object flags, py::object objectIndex, std::vector<std::string> objectNames, py::dict settings,
-           py::object progress, py::object lights) {
+           py::object progress, py::object lights, py::object minEdge) {
             auto v = checked<float>(vertices, "vertices", {-1, 3});
             auto p = checked<int32_t>(polygons, "polygons", {-1, 4});
             py::ssize_t np = p.shape(0);
@@ -418,6 +418,11 @@ void bindSolver(py::module_& m) {
             in.flags = f.data();
             in.objectIndex = o.data();
             in.objectNames = std::move(objectNames);
+            Array<float> m;
+            if (!minEdge.is_none()) {
+                m = checked<float>(minEdge, "min_edge", {np});
+                in.minEdge = m.data();
+            }
             if (!lights.is_none())
                 for (auto item : py::iter(lights)) in.lights.push_back(parseLight(item));
             Settings s = parseSettings(settings);
@@ -434,7 +439,7 @@ void bindSolver(py::module_& m) {
         },
         py::arg("vertices"), py::arg("polygons"), py::arg("reflectance"), py::arg("emission"), py::arg("flags"),
         py::arg("object_index"), py::arg("object_names"), py::arg("settings") = py::dict(),
-        py::arg("progress") = py::none(), py::arg("lights") = py::none());
+        py::arg("progress") = py::none(), py::arg("lights") = py::none(), py::arg("min_edge") = py::none());
 
     m.def(
         "uv_overlaps",

@@ -389,6 +389,13 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
         if (plan.slices.empty()) return Refusal::NoBlocker;
         site.judged = plan.E_rr;
         if (site.judged > settings_.eMax) return Refusal::TooCoarse;
+        // E_rr counts texels of the plan's size, which max_texture may have made coarser than half the
+        // narrowest penumbra: a 200 m floor in 512 texels has 0.4 m texels, and a 0.2 m blocker's umbra
+        // under a small lamp vanished into one of them (lit at 0.068 where the exact answer is 0). Such a
+        // texture cannot show the shadow; the standard refiner can, down to the receiver's min_edge. A
+        // contact slab has no narrowest penumbra (zero at the contact), so it keeps its texture.
+        if (!plan.contact && std::isfinite(plan.alpha_min) && plan.alpha_min * plan.L_S / 2 < plan.p * (1 - 1e-9))
+            return Refusal::TooCoarse;
         ConvolutionSettings fine = cs;
         fine.resolution = std::clamp(plan.n * kDisplayFactor, std::min(kMinTexture, settings_.maxTexture),
                                      settings_.maxTexture);

@@ -110,7 +110,11 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
     scale = std::max(scale, sc.lightScale);
     threshold_ = s.epsilon * scale;
     double minEdge = s.minSize * sc.diagonal;
-    minArea_ = minEdge * minEdge;
+    minArea_.resize(sc.polygons.size());
+    for (size_t p = 0; p < sc.polygons.size(); ++p) {
+        double m = sc.polygons[p].minEdge > 0 ? sc.polygons[p].minEdge : minEdge;
+        minArea_[p] = m * m;
+    }
     lift_ = 1e-5 * sc.diagonal;
     if (!h.clusters().empty()) {
         const ClusterTree& ct = h.clusters();
@@ -162,7 +166,7 @@ void Refiner::keep(const Link& l, std::vector<Link>& out) {
 }
 
 bool Refiner::canSplit(int e) const {
-    return isClusterNode(e) || (h_[e].area > minArea_ && h_[e].depth < 250);
+    return isClusterNode(e) || (h_[e].area > minArea_[size_t(h_[e].polygon)] && h_[e].depth < 250);
 }
 
 bool Refiner::receives(int node) const {

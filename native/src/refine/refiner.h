@@ -93,7 +93,7 @@ private:
     const RayCaster& rays_;
     Settings settings_;
     double threshold_;
-    double minArea_;
+    std::vector<double> minArea_;  // per scene polygon: no element of it is split at or below this area
     double lift_;  // ray end points are lifted off their surfaces by this much
     int strata_;   // visibility rays = strata_^2
     Counters& counters_;

@@ -92,6 +92,11 @@ Scene buildScene(const SceneInput& in) {
             }
             raw.extend(v);
         }
+        if (in.minEdge && (!std::isfinite(in.minEdge[p]) || in.minEdge[p] < 0)) {
+            std::ostringstream s;
+            s << "min_edge " << in.minEdge[p] << " is negative or not finite";
+            fail(in, p, s.str());
+        }
         for (int c = 0; c < 3; ++c) {
             float r = in.reflectance[p * 3 + c], e = in.emission[p * 3 + c];
             if (!std::isfinite(r) || r < 0 || r >= 1) {
@@ -158,6 +163,7 @@ Scene buildScene(const SceneInput& in) {
         sp.diffuseVisible = !(f & kNoDiffuse);
         sp.object = in.objectIndex[p];
         sp.input = int(p);
+        sp.minEdge = in.minEdge ? in.minEdge[p] : 0;
         sp.surface = findRoot(in.polygons[p * 4]);
         scene.maxEmission = std::max(scene.maxEmission, maxComponent(sp.emission));
         scene.polygons.push_back(sp);

@@ -70,6 +70,10 @@ struct SceneInput {
     const uint8_t* flags = nullptr;       // numPolygons, PolygonFlags
     const int32_t* objectIndex = nullptr; // numPolygons, index into objectNames
     std::vector<std::string> objectNames;
+    // numPolygons or null: per face, the finest element edge in metres (0: min_size x the scene's
+    // diagonal). The add-on passes a lightmap's texel size, so a large hall is meshed as finely as its
+    // lightmaps can show and a small room no finer than they can.
+    const float* minEdge = nullptr;
     std::vector<Light> lights;  // world coordinates; copied
 };
 
@@ -88,6 +92,8 @@ struct ScenePolygon {
     // Faces joined through shared input vertices, transitively: one connected surface. The display
     // blends elements of one surface only, so two rooms whose walls share a plane stay apart.
     int surface = -1;
+    // The finest element edge the refiner may cut this face into, metres; 0: the scene's min_size rule.
+    double minEdge = 0;
 };
 
 inline Bounds polygonBox(const ScenePolygon& p) {
