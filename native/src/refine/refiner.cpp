@@ -104,8 +104,23 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
         flux += p.area * maxComponent(p.emission);
         if (p.receives && maxComponent(p.rho) > 0) area += p.area;
     }
+    // On a large open floor that mean is tiny wherever the lamps are small: a 20 cm lamp over a 100 m floor
+    // refined every element within ~15 m of it to the smallest size. The bound is therefore never below a
+    // tenth of the brightest irradiance one emitter gives the first face straight in front of it (a disk
+    // of its area at that distance): rooms keep their bound (it is larger), open floors stop where the
+    // light has fallen to 1e-4 of that lamp's peak instead of 1e-6.
+    double peak = 0;
+    for (const ScenePolygon& p : sc.polygons) {
+        double e = maxComponent(p.emission);
+        if (e <= 0) continue;
+        RayCaster::Hit hit = rays.firstHit(p.geom.centroid() + p.normal * (1e-5 * sc.diagonal), p.normal,
+                                           4 * sc.diagonal);
+        if (hit.polygon < 0) continue;
+        double d2 = hit.distance * hit.distance;
+        peak = std::max(peak, e * p.area / (M_PI * d2 + p.area));
+    }
     double scale = sc.maxEmission;
-    if (area > 0 && flux > 0) scale = std::min(scale, 200.0 * flux / area);
+    if (area > 0 && flux > 0) scale = std::min(scale, std::max(200.0 * flux / area, peak));
     // Lamps and the world are no faces: their scale is the brightest mean irradiance they give a face.
     scale = std::max(scale, sc.lightScale);
     threshold_ = s.epsilon * scale;

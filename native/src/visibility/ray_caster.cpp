@@ -122,6 +122,26 @@ bool RayCaster::shaftIsClear(const Bounds& a, const Bounds& b, int skipA, int sk
     return clear;
 }
 
+RayCaster::Hit RayCaster::firstHit(const Vec3& origin, const Vec3& dir, double far) const {
+    if (numTriangles_ == 0) return {};
+    RTCRayHit rh{};
+    rh.ray.org_x = float(origin.x); rh.ray.org_y = float(origin.y); rh.ray.org_z = float(origin.z);
+    rh.ray.dir_x = float(dir.x); rh.ray.dir_y = float(dir.y); rh.ray.dir_z = float(dir.z);
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = float(far);
+    rh.ray.mask = 0xFFFFFFFF;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+#if PENUMBRA_EMBREE_MAJOR >= 4
+    rtcIntersect1(scene_, &rh);
+#else
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcIntersect1(scene_, &ctx, &rh);
+#endif
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {};
+    return {triPolygon_[rh.hit.primID], double(rh.ray.tfar)};
+}
+
 std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const {
     std::vector<char> out(scene.polygons.size(), 0);
     if (numTriangles_ == 0) return out;
@@ -135,24 +155,9 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
         for (int k = 0; k < p.geom.n && n < 5; ++k) pts[n++] = (c + p.geom.v[k]) * 0.5;
         bool inside = true;
         for (int k = 0; k < n && inside; ++k) {
-            RTCRayHit rh{};
-            Vec3 o = pts[k] + p.normal * lift;
-            rh.ray.org_x = float(o.x); rh.ray.org_y = float(o.y); rh.ray.org_z = float(o.z);
-            rh.ray.dir_x = float(p.normal.x); rh.ray.dir_y = float(p.normal.y); rh.ray.dir_z = float(p.normal.z);
-            rh.ray.tnear = 0.0f;
-            rh.ray.tfar = float(far);
-            rh.ray.mask = 0xFFFFFFFF;
-            rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-#if PENUMBRA_EMBREE_MAJOR >= 4
-            rtcIntersect1(scene_, &rh);
-#else
-            RTCIntersectContext ctx;
-            rtcInitIntersectContext(&ctx);
-            rtcIntersect1(scene_, &ctx, &rh);
-#endif
+            Hit h = firstHit(pts[k] + p.normal * lift, p.normal, far);
             // Met from behind: the ray started inside a closed surface. Nothing met: open sky.
-            inside = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID &&
-                     dot(scene.polygons[size_t(triPolygon_[rh.hit.primID])].normal, p.normal) > 0;
+            inside = h.polygon >= 0 && dot(scene.polygons[size_t(h.polygon)].normal, p.normal) > 0;
         }
         out[i] = inside;
     }

@@ -49,6 +49,13 @@ public:
     // is always met from behind. Such a face sees nothing; cluster links, which cannot see shadows inside
     // a cluster, must not light it.
     std::vector<char> buriedFaces(const Scene& scene, double lift) const;
+    // The first occluding polygon along the ray (origin, unit dir) within `far`, and its distance;
+    // polygon -1 when nothing is met.
+    struct Hit {
+        int polygon = -1;
+        double distance = 0;
+    };
+    Hit firstHit(const Vec3& origin, const Vec3& dir, double far) const;
     // Occluding polygons whose boxes the shaft does not classify Outside (the caller tests further).
     std::vector<int> occludersInShaft(const Shaft& shaft) const;
 
