@@ -47,6 +47,26 @@ Extent boxExtent(const SunFrame& f, const Bounds& b) {
 // Whether something of extent `e` can cross a ray from the receiver (extent r) to the sun: nearer the sun
 // than the receiver's far side, and across the rays within the receiver's extent widened by the penumbra
 // (tan(angle / 2) times the largest depth between them).
+// Whether q stands more than `lift` in front of p's plane anywhere (on or behind it, it cannot cut a ray
+// leaving p), and the height of its lowest vertex over that plane.
+struct Standing {
+    bool front = false;
+    double low = HUGE_VAL;
+};
+Standing standing(const ScenePolygon& p, const ScenePolygon& q, double lift) {
+    Standing st;
+    for (int k = 0; k < q.geom.n; ++k) {
+        double h = dot(q.geom.v[k] - p.geom.v[0], p.normal);
+        st.front = st.front || h > lift;
+        st.low = std::fmin(st.low, h);
+    }
+    return st;
+}
+
+void appendTriangles(const ScenePolygon& q, std::vector<BlockerTriangle>& out) {
+    for (int k = 1; k + 1 < q.geom.n; ++k) out.push_back({q.geom.v[0], q.geom.v[k], q.geom.v[k + 1]});
+}
+
 bool inPrism(const Extent& r, const Extent& e, double t) {
     if (!(e.z0 < r.z1)) return false;
     double m = t * (r.z1 - e.z0) * 1.01;
@@ -108,20 +128,13 @@ SunTextures::SunTextures(const Scene& sc, const Settings& s, int threads) {
                            [&](int i) {
                                const ScenePolygon& q = sc.polygons[size_t(blockerIds[size_t(i)])];
                                if (size_t(blockerIds[size_t(i)]) == pi || q.input == p.input) return;
+                               Standing st = standing(p, q, lift);
+                               if (!st.front) return;
                                Extent qe;
-                               bool front = false;
-                               double low = HUGE_VAL;
-                               for (int k = 0; k < q.geom.n; ++k) {
-                                   qe.add(f, q.geom.v[k]);
-                                   double h = dot(q.geom.v[k] - p.geom.v[0], p.normal);
-                                   front = front || h > lift;
-                                   low = std::fmin(low, h);
-                               }
-                               // On or behind the face's plane it cannot cut a ray from the face to the sun.
-                               if (!front || !inPrism(r, qe, t)) return;
-                               touching = touching || low < gap;
-                               for (int k = 1; k + 1 < q.geom.n; ++k)
-                                   blockers.push_back({q.geom.v[0], q.geom.v[k], q.geom.v[k + 1]});
+                               for (int k = 0; k < q.geom.n; ++k) qe.add(f, q.geom.v[k]);
+                               if (!inPrism(r, qe, t)) return;
+                               touching = touching || st.low < gap;
+                               appendTriangles(q, blockers);
                            });
                 if (blockers.empty()) continue;
                 // A blocker reaching down to the face's plane (a wall meeting the floor, a box standing on it)
@@ -200,17 +213,10 @@ void SunTextures::lampTextures(const Scene& sc, const Settings& s, int threads, 
                            const ScenePolygon& q = sc.polygons[size_t(blockerIds[size_t(i)])];
                            if (size_t(blockerIds[size_t(i)]) == pi || q.input == p.input) return;
                            if (shaft.classify(polygonBox(q)) == Shaft::Outside) return;
-                           bool inFront = false;
-                           double low = HUGE_VAL;
-                           for (int k = 0; k < q.geom.n; ++k) {
-                               double h = dot(q.geom.v[k] - p.geom.v[0], p.normal);
-                               inFront = inFront || h > lift;
-                               low = std::fmin(low, h);
-                           }
-                           if (!inFront) return;
-                           touching = touching || low < gap;
-                           for (int k = 1; k + 1 < q.geom.n; ++k)
-                               blockers.push_back({q.geom.v[0], q.geom.v[k], q.geom.v[k + 1]});
+                           Standing st = standing(p, q, lift);
+                           if (!st.front) return;
+                           touching = touching || st.low < gap;
+                           appendTriangles(q, blockers);
                        });
             if (blockers.empty()) continue;
             if (touching) {
