@@ -18,7 +18,7 @@ import bpy
 import numpy as np
 
 from . import compat
-from .materials import albedo_varies, bake_batches
+from .materials import albedo_varies, bake_batches, bake_targets, image_rgba
 
 # Samples per texel of the Color bake. Cycles' DIFFUSE bake spreads its samples over each texel, so a texel that
 # a texture edge crosses holds a mix; at one sample the albedo is the texel centre's alone. On a checkered floor
@@ -124,19 +124,8 @@ def bake_albedo(scene, view_layer, jobs, margin):
 
 
 def _bake_batch(scene, view_layer, names, uv_name, jobs, margin):
-    made = []          # (node tree, image node, the tree's active node before)
-    images = {}
-    try:
-        for name in names:
-            res = jobs[name][1]
-            img = bpy.data.images.new("Penumbra albedo " + name, res, res, alpha=False, float_buffer=True)
-            images[name] = img
-            for mat in own_materials(bpy.data.objects[name]):
-                nt = mat.node_tree
-                node = nt.nodes.new("ShaderNodeTexImage")
-                node.image = img
-                made.append((nt, node, nt.nodes.active))
-                nt.nodes.active = node      # the bake writes into the active image node of every material
+    sizes = {name: (jobs[name][1], jobs[name][1]) for name in names}
+    with bake_targets("Penumbra albedo ", sizes, lambda n: own_materials(bpy.data.objects[n])) as images:
         for o in view_layer.objects:
             if o.select_get(view_layer=view_layer):
                 o.select_set(False, view_layer=view_layer)
@@ -150,17 +139,4 @@ def _bake_batch(scene, view_layer, names, uv_name, jobs, margin):
                                     use_selected_to_active=False, uv_layer=uv_name)
         if r != {"FINISHED"}:
             raise RuntimeError(f"Cycles could not bake the albedo of {', '.join(names)} ({r})")
-        out = {}
-        for name, img in images.items():
-            w, h = img.size
-            px = np.empty(w * h * 4, np.float32)
-            img.pixels.foreach_get(px)
-            out[name] = np.ascontiguousarray(px.reshape(h, w, 4)[:, :, :3])
-        return out
-    finally:
-        for nt, node, prev in reversed(made):
-            nt.nodes.remove(node)
-            if prev is not None:
-                nt.nodes.active = prev
-        for img in images.values():
-            bpy.data.images.remove(img)
+        return {name: np.ascontiguousarray(image_rgba(img)[:, :, :3]) for name, img in images.items()}

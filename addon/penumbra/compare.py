@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 
 from . import compat
-from .materials import bake_batches, parse_material
+from .materials import bake_batches, bake_targets, image_rgba, parse_material
 from .preview import preview_off, preview_on, set_preview
 from .writeback import baked_state
 
@@ -377,25 +377,15 @@ def cycles_lightmaps(scene, jobs, samples, seed=0, bounces=32, margin=4):
     batches = [{"uv": uv_of[names[0]], "names": names} for names in bake_batches(
         uv_of, lambda n: {s.material.name for s in bpy.data.objects[n].material_slots if s.material is not None})]
     result, seconds = {}, 0.0
+    def node_materials(name):
+        mats = [slot.material for slot in bpy.data.objects[name].material_slots]
+        if any(m is None or not compat.uses_nodes(m) for m in mats):
+            raise ValueError(f"{name}: Cycles can bake only objects whose material slots all hold node materials")
+        return mats
+
     for b in batches:
-        made = []      # (node tree, node, previous active node)
-        images = {}
-        try:
-            for name in b["names"]:
-                ob = bpy.data.objects[name]
-                _, w, h = jobs[name]
-                img = bpy.data.images.new("PenumbraCompare_" + name, w, h, alpha=False, float_buffer=True)
-                images[name] = img
-                for slot in ob.material_slots:
-                    mat = slot.material
-                    if mat is None or not compat.uses_nodes(mat):
-                        raise ValueError(f"{name}: Cycles can bake only objects whose material slots all hold "
-                                         f"node materials")
-                    nt = mat.node_tree
-                    node = nt.nodes.new("ShaderNodeTexImage")
-                    node.image = img
-                    made.append((nt, node, nt.nodes.active))
-                    nt.nodes.active = node
+        sizes = {name: jobs[name][1:] for name in b["names"]}
+        with bake_targets("PenumbraCompare_", sizes, node_materials) as images:
             for o in vl.objects:
                 o.select_set(False)
             for name in b["names"]:
@@ -409,17 +399,7 @@ def cycles_lightmaps(scene, jobs, samples, seed=0, bounces=32, margin=4):
             if r != {"FINISHED"}:
                 raise RuntimeError(f"Cycles bake of {', '.join(b['names'])} returned {r}")
             for name, img in images.items():
-                w, h = img.size
-                px = np.empty(w * h * 4, np.float32)
-                img.pixels.foreach_get(px)
-                result[name] = px.reshape(h, w, 4)
-        finally:
-            for nt, node, prev in reversed(made):
-                nt.nodes.remove(node)
-                if prev is not None:
-                    nt.nodes.active = prev
-            for img in images.values():
-                bpy.data.images.remove(img)
+                result[name] = image_rgba(img)
     return result, seconds
 
 

@@ -4,6 +4,7 @@ Units follow Cycles (blender-facts §1): an Emission shader or a Principled BSDF
 faces, so the exitance sent to the solver is pi*S*C with the two-sided flag. Whatever cannot be read falls back to
 a 0.8 grey non-emitter (what Cycles shows for an object without material) and says so in a warning.
 """
+import contextlib
 import math
 
 import numpy as np
@@ -300,3 +301,40 @@ def bake_batches(uv_of, materials_of):
         else:
             batches.append({"uv": uv_name, "names": [name], "mats": mats})
     return [b["names"] for b in batches]
+
+
+@contextlib.contextmanager
+def bake_targets(prefix, sizes, materials_of):
+    """Float images for one Cycles bake into IMAGE_TEXTURES: {object name: image}, each made the active Image
+    Texture node of every material `materials_of(name)` gives (the bake writes into that node). `sizes`:
+    {object name: (width, height)}. The nodes and images are removed on leaving, whatever happened, and each
+    material's active node is given back."""
+    import bpy
+    made = []          # (node tree, image node, the tree's active node before)
+    images = {}
+    try:
+        for name, (w, h) in sizes.items():
+            img = bpy.data.images.new(prefix + name, w, h, alpha=False, float_buffer=True)
+            images[name] = img
+            for mat in materials_of(name):
+                nt = mat.node_tree
+                node = nt.nodes.new("ShaderNodeTexImage")
+                node.image = img
+                made.append((nt, node, nt.nodes.active))
+                nt.nodes.active = node
+        yield images
+    finally:
+        for nt, node, prev in reversed(made):
+            nt.nodes.remove(node)
+            if prev is not None:
+                nt.nodes.active = prev
+        for img in images.values():
+            bpy.data.images.remove(img)
+
+
+def image_rgba(img):
+    """An image's pixels as (height, width, 4) float32, rows bottom to top."""
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    return px.reshape(h, w, 4)
