@@ -25,6 +25,7 @@ import numpy as np
 from . import compat
 from .materials import bake_batches, bake_targets, image_rgba, parse_material
 from .preview import preview_off, preview_on, set_preview
+from .world_map import read_float_image
 from .writeback import baked_state
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])
@@ -123,16 +124,7 @@ def _path_tracing(scene, samples, bounces, seed):
 
 def _read_exr(path):
     """{pass name: (H, W, C) float32, rows top to bottom} from a multilayer EXR."""
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise RuntimeError(f"cannot read {path}: {oiio.geterror()}")
-    try:
-        spec = inp.spec()
-        data = np.asarray(inp.read_image(oiio.FLOAT)).reshape(spec.height, spec.width, spec.nchannels)
-        names = list(spec.channelnames)
-    finally:
-        inp.close()
+    data, names = read_float_image(path, path)
     passes = {}
     for i, n in enumerate(names):
         parts = n.split(".")

@@ -117,16 +117,23 @@ class _camera_sees_world:
         return False
 
 
-def _read_rgb(path):
+def read_float_image(path, what):
+    """(pixels (H, W, C) float32 with rows top to bottom, channel names) of an EXR Cycles wrote; `what` names it
+    in the error."""
     import OpenImageIO as oiio
     inp = oiio.ImageInput.open(path)
     if inp is None:
-        raise RuntimeError(f"Cycles wrote no readable world image ({oiio.geterror()})")
+        raise RuntimeError(f"cannot read {what} ({oiio.geterror()})")
     try:
         spec = inp.spec()
         px = np.asarray(inp.read_image(oiio.FLOAT)).reshape(spec.height, spec.width, spec.nchannels)
+        return px, list(spec.channelnames)
     finally:
         inp.close()
+
+
+def _read_rgb(path):
+    px, _ = read_float_image(path, "the world image Cycles wrote")
     return px[::-1, :, :3].astype(np.float32)      # EXR rows run top down
 
 
