@@ -574,69 +574,18 @@ def _safe_filename(name):
     return safe
 
 
-_EXR_HEADERS = {}
+def store_pixels(img, px, native, data=None):
+    """Put a lightmap (H, W, 4) into a new float image `img` (alpha off) as a packed EXR: `data`, or
+    native.exr_bytes(px), the very file Blender 3.4's Image.pack() would write of `px`.
 
-
-def _exr_attribute(name, kind, payload):
-    return name + b"\0" + kind + b"\0" + len(payload).to_bytes(4, "little") + payload
-
-
-def _exr_header(width, height):
-    """The header and line offset table of the EXR that exr_bytes writes, made once per size."""
-    key = (width, height)
-    if key not in _EXR_HEADERS:
-        # Channels in the alphabetical order EXR stores them: FLOAT (2), not linear, sampled 1 x 1.
-        channel = (2).to_bytes(4, "little") + bytes(4) + (1).to_bytes(4, "little") * 2
-        channels = b"".join(c + b"\0" + channel for c in (b"B", b"G", b"R")) + b"\0"
-        box = np.array([0, 0, width - 1, height - 1], "<i4").tobytes()
-        one = np.array([1.0], "<f4").tobytes()
-        head = (b"v/1\x01" + (2).to_bytes(4, "little")     # magic; version 2, single-part scanlines
-                + _exr_attribute(b"channels", b"chlist", channels)
-                + _exr_attribute(b"compression", b"compression", b"\0")        # none
-                + _exr_attribute(b"dataWindow", b"box2i", box)
-                + _exr_attribute(b"displayWindow", b"box2i", box)
-                + _exr_attribute(b"lineOrder", b"lineOrder", b"\0")            # increasing y
-                + _exr_attribute(b"pixelAspectRatio", b"float", one)
-                + _exr_attribute(b"screenWindowCenter", b"v2f", bytes(8))
-                + _exr_attribute(b"screenWindowWidth", b"float", one)
-                + _exr_attribute(b"xDensity", b"float", np.array([72.0], "<f4").tobytes())
-                + b"\0")
-        line = 8 + 12 * width
-        offsets = len(head) + 8 * height + line * np.arange(height, dtype="<u8")
-        _EXR_HEADERS[key] = head + offsets.astype("<u8").tobytes()
-    return _EXR_HEADERS[key]
-
-
-def exr_bytes(px):
-    """The EXR file of a lightmap (H, W, 4) float32, rows bottom to top as in Image.pixels, alpha dropped:
-    the file Blender 3.4's Image.pack() makes of the same pixels (32-bit float B, G, R, uncompressed, one
-    line per chunk, the same header), byte for byte; Blender's packed copy also carries a few bytes past the
-    file's end, which no reader looks at.
-
-    Blender encodes it through OpenEXR in 0.6 ms for a 32 x 32 image, about as long as the rest of an
-    object's write-back; this is a few copies of the texels (blender_tests/test_writeback_scaling.py compares
-    the bytes, and the pixels Blender reads back from them)."""
-    height, width = px.shape[:2]
-    head = _exr_header(width, height)
-    # Each line: its y (top line 0) and byte count, then its B, G and R values, each channel whole.
-    lines = np.empty((height, 2 + 3 * width), "<f4")
-    counts = lines[:, :2].view("<i4")
-    counts[:, 0] = np.arange(height)
-    counts[:, 1] = 12 * width
-    top_down = px[::-1]
-    for k, c in enumerate((2, 1, 0)):
-        lines[:, 2 + k * width:2 + (k + 1) * width] = top_down[:, :, c]
-    return head + lines.tobytes()
-
-
-def store_pixels(img, px):
-    """Put a lightmap (H, W, 4) into a new float image `img` (alpha off) as a packed EXR.
-
-    The image becomes a file image whose file is the packed one: Blender reads its pixels from it when
-    something first needs them (a material drawn, Image.pixels), as it does after the .blend is opened
-    again; the EXR is lossless, so they are `px`'s bit for bit (alpha 1). Should a Blender keep no packed
-    file from the bytes, the pixels are set and packed by Blender instead, as before."""
-    data = exr_bytes(px)
+    Image.pack() encodes through OpenEXR, 0.6 ms for a 32 x 32 image: as long as the rest of an object's
+    write-back. Here the image becomes a file image whose file is the packed one, and Blender reads its
+    pixels from it when something first needs them (a material drawn, Image.pixels), as it does after the
+    .blend is opened again; the EXR is lossless, so they are `px`'s bit for bit, alpha 1
+    (blender_tests/test_writeback_scaling.py). Should a Blender keep no packed file from the bytes, the
+    pixels are set and packed by Blender instead, as before."""
+    if data is None:
+        data = native.exr_bytes(px)
     img.source = "FILE"
     img.pack(data=data, data_len=len(data))
     pf = img.packed_file
@@ -711,8 +660,8 @@ def _radiance_of_all(solution, samples, irradiance=False):
 
 # Lightmaps baked per native call at most: the call holds about 60 bytes per texel while it runs.
 BATCH_TEXELS = 1 << 21
-# Texels baked but not yet stored in their images at most (16 bytes each) before the worker waits for the
-# main thread: a bake of many large lightmaps holds a few of them at a time, not all.
+# Texels baked but not yet stored in their images at most (28 bytes each: the texels and their EXR file)
+# before the worker waits for the main thread: a bake of many large lightmaps holds a few of them at a time, not all.
 AHEAD_TEXELS = 1 << 23
 
 
@@ -720,7 +669,7 @@ class _Job:
     """One object's write-back: what is read from it first, then what the batched native calls give."""
     __slots__ = ("name", "uv_name", "uv_created", "albedo", "reflects", "old", "record", "front", "front_rgb",
                  "positions", "uvs", "uv_outside", "shared", "pixels", "corners", "corner_rgb", "other_topology",
-                 "two_sided")
+                 "two_sided", "exr")
 
 
 def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None, placements=None):
@@ -730,6 +679,7 @@ def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None
     job = _Job()
     job.name, job.uv_name, job.uv_created, job.albedo, job.reflects = ob.name, uv_name, uv_created, albedo, reflects
     job.old = baked_state(ob)
+    job.exr = None
     job.record = {"uv_map": uv_name, "uv_created": bool(uv_created or job.old.get("uv_created", False)) and
                   uv_name == UV_NAME, "irradiance": bool(settings.get("irradiance"))}
     if "LIGHTMAP" in targets:
@@ -787,10 +737,11 @@ class _LightmapBaker:
     so the first images can be stored while later ones bake); wait(job) returns once the job's chunk is baked,
     and the worker stays at most AHEAD_TEXELS ahead of the images stored."""
 
-    def __init__(self, solution, res, margin, irradiance):
+    def __init__(self, solution, res, margin, irradiance, native):
         import queue
         import threading
         self.args = (solution, res, margin, irradiance)
+        self.native = native
         self.per = max(1, min(64, BATCH_TEXELS // (res * res)))
         self.pending = []
         self.queue = queue.Queue()
@@ -847,6 +798,10 @@ class _LightmapBaker:
                         j.pixels = p
                     for j, p in zip(both, px[len(chunk):]):
                         j.pixels[..., :3] = np.maximum(j.pixels[..., :3], p[..., :3])
+                    for j in chunk:
+                        # The image's file is made here, beside the main thread, unless the albedo is to
+                        # change the pixels first.
+                        j.exr = self.native.exr_bytes(j.pixels) if j.albedo is None else None
                     with self.room:
                         self.ahead += texels
             except BaseException as e:      # re-raised in the main thread by wait()
@@ -978,7 +933,8 @@ def _write_lightmap(ob, job, native, settings, tx, files, outputs, images):
     images.setdefault(img_name, img)
     tx.on_rollback(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
                    if n in bpy.data.images else None)
-    store_pixels(img, px)
+    # The worker encoded the file already unless the albedo changed the pixels since.
+    store_pixels(img, px, native, job.exr if albedo is None else None)
     img.use_fake_user = True   # kept in the .blend even when no material shows it
     img["penumbra"] = True
     if settings.get("output_dir"):
@@ -1091,7 +1047,7 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
         if progress is not None:
             progress("write-back", frac)
     jobs = []
-    baker = _LightmapBaker(solution, settings["resolution"], settings["margin"], irradiance) \
+    baker = _LightmapBaker(solution, settings["resolution"], settings["margin"], irradiance, native) \
         if "LIGHTMAP" in targets else None
     try:
         for i, name in enumerate(names):
@@ -1136,7 +1092,7 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
             _record(ob, j, tx)
             if "LIGHTMAP" in targets:
                 _tile_props(ob, j, tx)
-            j.pixels = j.positions = j.uvs = j.corners = None     # the memory goes as soon as it is stored
+            j.pixels = j.exr = j.positions = j.uvs = j.corners = None     # the memory goes once it is stored
     finally:
         if baker is not None:
             baker.stop = True        # on a failure: what is still queued is not baked

@@ -463,6 +463,26 @@ void bindSolver(py::module_& m) {
             writeExr(path, a.data(), w, h, c);
         },
         py::arg("path"), py::arg("pixels"));
+
+    m.def(
+        "exr_bytes",
+        [](py::object pixels) {
+            auto a = checked<float>(pixels, "pixels", {-1, -1, -1});
+            int h = int(a.shape(0)), w = int(a.shape(1)), c = int(a.shape(2));
+            if (c != 3 && c != 4) throw py::value_error("pixels must have 3 or 4 channels");
+            if (h <= 0 || w <= 0) throw py::value_error("pixels must not be empty");
+            size_t n = exrFileSize(w, h);
+            // Filled in place without the GIL: no other thread can see the new object yet.
+            py::bytes out = py::reinterpret_steal<py::bytes>(PyBytes_FromStringAndSize(nullptr, py::ssize_t(n)));
+            if (!out) throw py::error_already_set();
+            char* dst = PyBytes_AS_STRING(out.ptr());
+            {
+                py::gil_scoped_release nogil;
+                encodeExr(dst, a.data(), w, h, c);
+            }
+            return out;
+        },
+        py::arg("pixels"));
 }
 
 }  // namespace penumbra::python
