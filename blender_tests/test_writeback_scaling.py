@@ -242,3 +242,20 @@ def test_lightmap_exr_is_the_one_image_pack_writes(empty_scene, penumbra, shape)
         assert getattr(ours, attr) == getattr(theirs, attr), attr
     assert tuple(ours.size) == tuple(theirs.size) == (w, h)
     assert ours.colorspace_settings.name == theirs.colorspace_settings.name
+
+
+def test_lightmap_packed_by_blender_when_the_bytes_are_not_kept(empty_scene, penumbra, monkeypatch):
+    """The fallback for a Blender that keeps no packed file from Image.pack(data=...): the pixels go through
+    Image.pack() as before the EXR was written natively, with the same image as the result."""
+    from penumbra import writeback
+    px = np.random.default_rng(4).random((8, 8, 4)).astype(np.float32)
+    px[..., 3] = 1.0
+    ours = bpy.data.images.new("ByExrBytes", 8, 8, alpha=False, float_buffer=True)
+    writeback.store_pixels(ours, px, penumbra._native)
+    monkeypatch.setattr(writeback, "_pack_file", lambda img, data: False)
+    theirs = bpy.data.images.new("ByImagePack", 8, 8, alpha=False, float_buffer=True)
+    writeback.store_pixels(theirs, px, penumbra._native)
+    assert theirs.packed_file is not None and theirs.packed_file.data[:4] == b"v/1\x01"      # an EXR
+    for img in (ours, theirs):
+        assert img.source == "FILE" and not img.is_dirty
+        np.testing.assert_array_equal(helpers.image_pixels(img), px)

@@ -586,14 +586,19 @@ def store_pixels(img, px, native, data=None):
     pixels are set and packed by Blender instead, as before."""
     if data is None:
         data = native.exr_bytes(px)
-    img.source = "FILE"
-    img.pack(data=data, data_len=len(data))
-    pf = img.packed_file
-    if pf is None or pf.size != len(data):
+    if not _pack_file(img, data):
         img.source = "GENERATED"
         img.pixels.foreach_set(px.ravel())
         img.update()
         img.pack()
+
+
+def _pack_file(img, data):
+    """Make `img` a file image whose packed file is `data`; whether Blender kept it."""
+    img.source = "FILE"
+    img.pack(data=data, data_len=len(data))
+    pf = img.packed_file
+    return pf is not None and pf.size == len(data)
 
 
 def _our_attribute(me, old):
