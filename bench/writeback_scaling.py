@@ -155,13 +155,14 @@ def main():
         r = run(penumbra, n, args.resolution, args.rebake)
         rows.append(r)
         print(f"{n:6d} objects: write-back {r['write_back_s']:8.3f} s  ({r['per_object_ms']:6.2f} ms/object)  "
-              f"finish {r['finish_s']:.3f} s ({r['finish_cpu_s']:.3f} CPU s, main thread {r['finish_main_cpu_s']:.3f})  "
+              f"finish {r['finish_s']:.3f} s ({r['finish_cpu_s']:.3f} CPU s, "
+              f"main thread {r['finish_main_cpu_s']:.3f})  "
               f"first read {r['first_read_s']:.3f} CPU s  solve {r['solve_s']:.2f} s  "
               f"other load {r['other_load']:.1f}"
               + (f"  re-bake write-back {r['rebake_write_back_s']:.3f} s" if "rebake_write_back_s" in r else ""),
               flush=True)
-    print("\n| objects | write-back s | ms per object | finish s (with the commit) | finish CPU s | main thread CPU s | "
-          "re-bake write-back s | other load |\n|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("\n| objects | write-back s | ms per object | finish s (with the commit) | finish CPU s | "
+          "main thread CPU s | re-bake write-back s | other load |\n|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         again = f"{r['rebake_write_back_s']:.3f}" if "rebake_write_back_s" in r else "-"
         print(f"| {r['objects']} | {r['write_back_s']:.3f} | {r['per_object_ms']:.2f} | {r['finish_s']:.3f} | "

@@ -666,7 +666,8 @@ def _radiance_of_all(solution, samples, irradiance=False):
 # Lightmaps baked per native call at most: the call holds about 60 bytes per texel while it runs.
 BATCH_TEXELS = 1 << 21
 # Texels baked but not yet stored in their images at most (28 bytes each: the texels and their EXR file)
-# before the worker waits for the main thread: a bake of many large lightmaps holds a few of them at a time, not all.
+# before the worker waits for the main thread: a bake of many large lightmaps holds a few of them at a time,
+# not all.
 AHEAD_TEXELS = 1 << 23
 
 

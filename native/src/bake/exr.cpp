@@ -35,8 +35,8 @@ void appendAttribute(std::string& s, const char* name, const char* type, const s
     s += value;
 }
 
-// Magic, version 2 (single part, scanlines), the attributes Blender's writer puts in the order EXR sorts
-// them, and the header's closing zero.
+// Magic, version 2 (single part, scanlines), the attributes Blender's writer gives, in the name order the
+// EXR library writes them in, and the header's closing zero.
 std::string exrHeader(int width, int height) {
     std::string s("v/1\x01", 4);
     append32(s, 2);
@@ -68,7 +68,8 @@ std::string exrHeader(int width, int height) {
 }
 
 void checkShape(int width, int height) {
-    if (width <= 0 || height <= 0 || size_t(width) > (size_t(1) << 28) / 12u || height > (1 << 28))
+    // A line's byte count (12 per texel) is a 32-bit int in the file.
+    if (width <= 0 || height <= 0 || width > (1 << 24) || height > (1 << 24))
         throw std::invalid_argument("exr: bad image shape");
 }
 
