@@ -804,10 +804,10 @@ class _LightmapBaker:
                         j.pixels = p
                     for j, p in zip(both, px[len(chunk):]):
                         j.pixels[..., :3] = np.maximum(j.pixels[..., :3], p[..., :3])
-                    for j in chunk:
-                        # The image's file is made here, beside the main thread, unless the albedo is to
-                        # change the pixels first.
-                        j.exr = self.native.exr_bytes(j.pixels) if j.albedo is None else None
+                    # The images' files are made here, beside the main thread, unless the albedo is to change
+                    # the pixels first.
+                    for j, exr in zip(chunk, self.native.exr_bytes(px[:len(chunk)])):
+                        j.exr = exr if j.albedo is None else None
                     with self.room:
                         self.ahead += texels
             except BaseException as e:      # re-raised in the main thread by wait()

@@ -157,8 +157,16 @@ def test_exr_bytes_read_back_exactly(tmp_path, shape):
     np.testing.assert_array_equal(back[::-1].view(np.uint32), img[..., :3].view(np.uint32))
 
 
+def test_exr_bytes_of_many_images_are_each_ones():
+    imgs = np.random.default_rng(6).random((3, 4, 5, 4)).astype(np.float32)
+    files = _native.exr_bytes(imgs)
+    assert isinstance(files, list) and files == [_native.exr_bytes(np.ascontiguousarray(i)) for i in imgs]
+    assert _native.exr_bytes(imgs[:0]) == []
+
+
 def test_exr_bytes_refuses_bad_pixels():
-    for bad in (np.zeros((4, 4, 2), np.float32), np.zeros((0, 4, 4), np.float32), np.zeros((4, 4), np.float32)):
+    for bad in (np.zeros((4, 4, 2), np.float32), np.zeros((0, 4, 4), np.float32), np.zeros((4, 4), np.float32),
+                np.zeros((2, 4, 4, 4), np.float64), [[[1.0, 2.0, 3.0]]]):
         with pytest.raises((ValueError, TypeError)):
             _native.exr_bytes(bad)
 
