@@ -142,7 +142,7 @@ def plot(rows_by_label, path):
     ax.set_ylabel("write-back seconds")
     ax.set_title("Penumbra write-back against object count")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
