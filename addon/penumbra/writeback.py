@@ -574,6 +574,33 @@ def _safe_filename(name):
     return safe
 
 
+def store_pixels(img, px, native, data=None):
+    """Put a lightmap (H, W, 4) into a new float image `img` (alpha off) as a packed EXR: `data`, or
+    native.exr_bytes(px), the very file Blender 3.4's Image.pack() would write of `px`.
+
+    Image.pack() encodes through OpenEXR, 0.6 ms for a 32 x 32 image: as long as the rest of an object's
+    write-back. Here the image becomes a file image whose file is the packed one, and Blender reads its
+    pixels from it when something first needs them (a material drawn, Image.pixels), as it does after the
+    .blend is opened again; the EXR is lossless, so they are `px`'s bit for bit, alpha 1
+    (blender_tests/test_writeback_scaling.py). Should a Blender keep no packed file from the bytes, the
+    pixels are set and packed by Blender instead, as before."""
+    if data is None:
+        data = native.exr_bytes(px)
+    if not _pack_file(img, data):
+        img.source = "GENERATED"
+        img.pixels.foreach_set(px.ravel())
+        img.update()
+        img.pack()
+
+
+def _pack_file(img, data):
+    """Make `img` a file image whose packed file is `data`; whether Blender kept it."""
+    img.source = "FILE"
+    img.pack(data=data, data_len=len(data))
+    pf = img.packed_file
+    return pf is not None and pf.size == len(data)
+
+
 def _our_attribute(me, old):
     """The colour attribute name for this bake: the one the last bake made, else 'Penumbra' unless the user
     already has an attribute of that name (never replaced), else the first free 'Penumbra.NNN'."""
@@ -638,8 +665,9 @@ def _radiance_of_all(solution, samples, irradiance=False):
 
 # Lightmaps baked per native call at most: the call holds about 60 bytes per texel while it runs.
 BATCH_TEXELS = 1 << 21
-# Texels baked but not yet stored in their images at most (16 bytes each) before the worker waits for the
-# main thread: a bake of many large lightmaps holds a few of them at a time, not all.
+# Texels baked but not yet stored in their images at most (28 bytes each: the texels and their EXR file)
+# before the worker waits for the main thread: a bake of many large lightmaps holds a few of them at a time,
+# not all.
 AHEAD_TEXELS = 1 << 23
 
 
@@ -647,7 +675,7 @@ class _Job:
     """One object's write-back: what is read from it first, then what the batched native calls give."""
     __slots__ = ("name", "uv_name", "uv_created", "albedo", "reflects", "old", "record", "front", "front_rgb",
                  "positions", "uvs", "uv_outside", "shared", "pixels", "corners", "corner_rgb", "other_topology",
-                 "two_sided")
+                 "two_sided", "exr")
 
 
 def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None, placements=None):
@@ -657,6 +685,7 @@ def _gather(ob, dg, uv_name, uv_created, settings, reflects, albedo, copies=None
     job = _Job()
     job.name, job.uv_name, job.uv_created, job.albedo, job.reflects = ob.name, uv_name, uv_created, albedo, reflects
     job.old = baked_state(ob)
+    job.exr = None
     job.record = {"uv_map": uv_name, "uv_created": bool(uv_created or job.old.get("uv_created", False)) and
                   uv_name == UV_NAME, "irradiance": bool(settings.get("irradiance"))}
     if "LIGHTMAP" in targets:
@@ -714,10 +743,11 @@ class _LightmapBaker:
     so the first images can be stored while later ones bake); wait(job) returns once the job's chunk is baked,
     and the worker stays at most AHEAD_TEXELS ahead of the images stored."""
 
-    def __init__(self, solution, res, margin, irradiance):
+    def __init__(self, solution, res, margin, irradiance, native):
         import queue
         import threading
         self.args = (solution, res, margin, irradiance)
+        self.native = native
         self.per = max(1, min(64, BATCH_TEXELS // (res * res)))
         self.pending = []
         self.queue = queue.Queue()
@@ -774,6 +804,10 @@ class _LightmapBaker:
                         j.pixels = p
                     for j, p in zip(both, px[len(chunk):]):
                         j.pixels[..., :3] = np.maximum(j.pixels[..., :3], p[..., :3])
+                    # The images' files are made here, beside the main thread, unless the albedo is to change
+                    # the pixels first.
+                    for j, exr in zip(chunk, self.native.exr_bytes(px[:len(chunk)])):
+                        j.exr = exr if j.albedo is None else None
                     with self.room:
                         self.ahead += texels
             except BaseException as e:      # re-raised in the main thread by wait()
@@ -905,9 +939,8 @@ def _write_lightmap(ob, job, native, settings, tx, files, outputs, images):
     images.setdefault(img_name, img)
     tx.on_rollback(lambda n=img_name: bpy.data.images.remove(bpy.data.images[n])
                    if n in bpy.data.images else None)
-    img.pixels.foreach_set(px.ravel())
-    img.update()
-    img.pack()                 # float32 EXR inside the .blend; exact with alpha off (blender-facts §3)
+    # The worker encoded the file already unless the albedo changed the pixels since.
+    store_pixels(img, px, native, job.exr if albedo is None else None)
     img.use_fake_user = True   # kept in the .blend even when no material shows it
     img["penumbra"] = True
     if settings.get("output_dir"):
@@ -1020,7 +1053,7 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
         if progress is not None:
             progress("write-back", frac)
     jobs = []
-    baker = _LightmapBaker(solution, settings["resolution"], settings["margin"], irradiance) \
+    baker = _LightmapBaker(solution, settings["resolution"], settings["margin"], irradiance, native) \
         if "LIGHTMAP" in targets else None
     try:
         for i, name in enumerate(names):
@@ -1065,7 +1098,7 @@ def write_objects(objs, names, solution, native, dg, uv, settings, tx, report, f
             _record(ob, j, tx)
             if "LIGHTMAP" in targets:
                 _tile_props(ob, j, tx)
-            j.pixels = j.positions = j.uvs = j.corners = None     # the memory goes as soon as it is stored
+            j.pixels = j.exr = j.positions = j.uvs = j.corners = None     # the memory goes once it is stored
     finally:
         if baker is not None:
             baker.stop = True        # on a failure: what is still queued is not baked

@@ -468,6 +468,41 @@ void bindSolver(py::module_& m) {
             writeExr(path, a.data(), w, h, c);
         },
         py::arg("path"), py::arg("pixels"));
+
+    m.def(
+        "exr_bytes",
+        [](py::object pixels) -> py::object {
+            if (!py::isinstance<py::array>(pixels)) throw py::value_error("pixels must be a numpy array");
+            const bool many = py::reinterpret_borrow<py::array>(pixels).ndim() == 4;
+            auto a = many ? checked<float>(pixels, "pixels", {-1, -1, -1, -1})
+                          : checked<float>(pixels, "pixels", {-1, -1, -1});
+            const int d = many ? 1 : 0;
+            const size_t k = many ? size_t(a.shape(0)) : 1;
+            const int h = int(a.shape(d)), w = int(a.shape(d + 1)), c = int(a.shape(d + 2));
+            if (c != 3 && c != 4) throw py::value_error("pixels must have 3 or 4 channels");
+            if (h <= 0 || w <= 0) throw py::value_error("pixels must not be empty");
+            const size_t n = exrFileSize(w, h);
+            // The files are filled in place without the GIL (no other thread can see the new objects yet),
+            // all of them in one release: the worker thread hands the GIL over once per chunk of lightmaps,
+            // not once per lightmap (no difference measured at 1000 cubes under other load 4-5).
+            std::vector<py::bytes> files;
+            std::vector<char*> dst;
+            for (size_t i = 0; i < k; ++i) {
+                files.push_back(py::reinterpret_steal<py::bytes>(PyBytes_FromStringAndSize(nullptr, py::ssize_t(n))));
+                if (!files.back()) throw py::error_already_set();
+                dst.push_back(PyBytes_AS_STRING(files.back().ptr()));
+            }
+            {
+                py::gil_scoped_release nogil;
+                const size_t texels = size_t(h) * size_t(w) * size_t(c);
+                for (size_t i = 0; i < k; ++i) encodeExr(dst[i], a.data() + i * texels, w, h, c);
+            }
+            if (!many) return std::move(files[0]);
+            py::list out;
+            for (auto& f : files) out.append(std::move(f));
+            return std::move(out);
+        },
+        py::arg("pixels"));
 }
 
 }  // namespace penumbra::python

@@ -136,6 +136,41 @@ def test_lightmap_covers_islands_and_dilates(tmp_path):
     np.testing.assert_array_equal(back[::-1], img)  # files store the top row first
 
 
+@pytest.mark.parametrize("shape", [(16, 32, 4), (5, 3, 3), (1, 1, 4)])
+def test_exr_bytes_read_back_exactly(tmp_path, shape):
+    """exr_bytes' file (what the add-on packs into the .blend) read by OpenImageIO: three float channels, the
+    first three given, every bit, rows top first; alpha dropped."""
+    OpenImageIO = pytest.importorskip("OpenImageIO")
+    img = np.random.default_rng(5).normal(0.0, 100.0, shape).astype(np.float32)
+    img.flat[:9:3] = [-0.0, 1e-42, -3e38]             # a negative zero, a subnormal, a huge value
+    data = _native.exr_bytes(img)
+    h, w = shape[:2]
+    assert isinstance(data, bytes) and len(data) == 336 + h * (16 + 12 * w)
+    path = tmp_path / "lm.exr"
+    path.write_bytes(data)
+    buf = OpenImageIO.ImageBuf(str(path))
+    spec = buf.spec()
+    assert (spec.width, spec.height, spec.nchannels) == (w, h, 3)
+    assert spec.format == OpenImageIO.FLOAT and spec.get_string_attribute("compression") == "none"
+    assert list(spec.channelnames) == ["R", "G", "B"]
+    back = buf.get_pixels(OpenImageIO.FLOAT)
+    np.testing.assert_array_equal(back[::-1].view(np.uint32), img[..., :3].view(np.uint32))
+
+
+def test_exr_bytes_of_many_images_are_each_ones():
+    imgs = np.random.default_rng(6).random((3, 4, 5, 4)).astype(np.float32)
+    files = _native.exr_bytes(imgs)
+    assert isinstance(files, list) and files == [_native.exr_bytes(np.ascontiguousarray(i)) for i in imgs]
+    assert _native.exr_bytes(imgs[:0]) == []
+
+
+def test_exr_bytes_refuses_bad_pixels():
+    for bad in (np.zeros((4, 4, 2), np.float32), np.zeros((0, 4, 4), np.float32), np.zeros((4, 4), np.float32),
+                np.zeros((2, 4, 4, 4), np.float64), [[[1.0, 2.0, 3.0]]]):
+        with pytest.raises((ValueError, TypeError)):
+            _native.exr_bytes(bad)
+
+
 def test_results_do_not_depend_on_thread_count():
     args = plane_and_lamp()
     pts = np.random.default_rng(1).uniform(-2, 2, (500, 3)).astype(np.float32)
