@@ -14,6 +14,13 @@ constexpr size_t kLeafPolygons = 8;  // a cluster this small links its polygons 
 // A polygon whose box is at least this fraction of its cluster's box hangs there: splitting the
 // cluster would not separate it from anything.
 constexpr double kLargeFraction = 0.5;
+// With planar groups on, one object's faces in one plane are split off first when they are at least this
+// share of the faces to split (and more than a leaf holds): a room modelled as one mesh then has its floor in
+// one planar cluster, which takes one convolution link per lamp instead of one per spatial piece. Planes below
+// the share are split in space, so a mesh of many small planes (stairs, a tessellated sphere) keeps a
+// balanced tree. Off by default: planar clusters are long and flat, not compact, so fewer of them are in each
+// other's far field (the furnace box of 8 x 8 faces a wall, one object: 884 cluster links -> 0, links +1.2 %).
+constexpr size_t kPlaneShareDivisor = 6;
 
 int longestAxis(const Bounds& b) {
     Vec3 d = b.diagonal();
@@ -27,9 +34,31 @@ uint64_t clusterKey(int c) {
     return x ^ (x >> 29);
 }
 
+// The faces of `items` lying in the plane holding most of them, if that plane holds enough of them to be
+// split off (kPlaneShareDivisor) and not all of them; else empty. Planes are keyed by their normal and
+// offset rounded to `tol`: a plane that straddles a rounding boundary falls into two groups, which only
+// makes it less likely to be split off whole.
+std::vector<int> largestPlaneGroup(const Scene& scene, const std::vector<int>& items, double tol) {
+    std::map<std::array<long long, 4>, std::vector<int>> planes;
+    for (int p : items) {
+        const ScenePolygon& sp = scene.polygons[size_t(p)];
+        const Vec3& n = sp.normal;
+        double d = dot(n, sp.geom.v[0]);
+        planes[{std::llround(n.x * 1e4), std::llround(n.y * 1e4), std::llround(n.z * 1e4), std::llround(d / tol)}]
+            .push_back(p);
+    }
+    const std::vector<int>* best = nullptr;
+    for (const auto& [key, group] : planes)
+        if (!best || group.size() > best->size()) best = &group;
+    if (!best || best->size() == items.size() || best->size() <= kLeafPolygons ||
+        best->size() * kPlaneShareDivisor < items.size())
+        return {};
+    return *best;
+}
+
 }  // namespace
 
-ClusterTree::ClusterTree(const Scene& scene) {
+ClusterTree::ClusterTree(const Scene& scene, bool planarGroups) : planarGroups_(planarGroups) {
     owner_.assign(scene.polygons.size(), -1);
     std::vector<int> items;
     for (size_t i = 0; i < scene.polygons.size(); ++i) {
@@ -116,6 +145,11 @@ void ClusterTree::build(const Scene& scene, std::vector<int>& items, int parent,
                 if (l) count += size_t(objects[order[k].second].second);
             }
             for (int p : rest) (goesLeft[scene.polygons[p].object] ? left : right).push_back(p);
+        } else if (std::vector<int> plane =
+                       planarGroups_ ? largestPlaneGroup(scene, rest, 1e-5 * std::max(diag, 1e-30)) : std::vector<int>{};
+                   !plane.empty()) {
+            std::sort(plane.begin(), plane.end());
+            for (int p : rest) (std::binary_search(plane.begin(), plane.end(), p) ? left : right).push_back(p);
         } else {
             Bounds centres;
             for (int p : rest) centres.extend(polygonBox(scene.polygons[p]).center());

@@ -223,6 +223,26 @@ TEST(ConvolutionLink, AFloorSplitAmongClustersIsLitOnceThroughEveryPiece) {
     EXPECT_LE(worstFace, 0.02 * peakFace);  // measured 0.74 % (the leaves' 4 x 4 sample means)
 }
 
+TEST(ConvolutionLink, PlanarClustersGiveAFloorModelledWithItsWallsOneLink) {
+    // With planar_clusters the cluster tree keeps the floor's 64 faces together: one link lights them all,
+    // with the textures of the whole floor's box, so the answer is the 4 x 4-face floor's.
+    const double blocker = 0.6;
+    Settings s;
+    s.planarClusters = true;
+    auto sol = solve(floorInARoomMesh(blocker).input(), s, nullptr);
+    ASSERT_EQ(sol->convolutionLinks().size(), 1u);
+    std::vector<int> floor(64);
+    for (int p = 0; p < 64; ++p) floor[size_t(p)] = p;
+    EXPECT_EQ(sol->convolutionLinks()[0].receiverPolygons, floor);
+    Grid g = floorGrid(blocker, 40, 2);
+    std::vector<float> got = sol->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    auto whole = solve(parallelPlanes(blocker).input(), Settings{}, nullptr);
+    std::vector<float> ref = whole->radiance(g.points.data(), g.normals.data(), g.exact.size());
+    double peak = *std::max_element(g.exact.begin(), g.exact.end()), apart = 0;
+    for (size_t i = 0; i < g.exact.size(); ++i) apart = std::max(apart, std::fabs(double(got[i * 3]) - ref[i * 3]) / peak);
+    EXPECT_LE(apart, 1e-6);  // measured 0
+}
+
 TEST(ConvolutionLink, SkipsTheShadowMeshStandardRefinementBuilds) {
     // Standard refinement meshes the floor down to the penumbra; with the convolution link the floor's
     // faces stay whole and the shadow lives in the texture.
