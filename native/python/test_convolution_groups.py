@@ -116,11 +116,14 @@ def test_a_floor_of_many_faces_takes_one_texture_and_equals_the_one_quad_floor(n
     assert worst <= 0.025 and mean <= 0.003           # measured 1.88 %, 0.13 %
 
 
-def test_a_floor_of_two_triangles_is_lit_once_per_face(one_quad):
+@pytest.mark.parametrize("planar", [False, True])
+def test_a_floor_of_two_triangles_is_lit_once_per_face(planar, one_quad):
     """Two triangles hang from the scene's only cluster beside the blocker and the lamp, which is not planar:
-    each triangle takes its own link. Each face is lit once and the answer is the one-quad floor's."""
+    each triangle takes its own link. With planar_clusters they are split off into a cluster of their own and
+    take one link. Either way each face is lit once and the answer is the one-quad floor's."""
     s, faces = floor_scene("tri")
-    sol = _native.solve(*s.args(), {})
+    sol = _native.solve(*s.args(), {"planar_clusters": planar})
+    assert len(sol.convolution_links) == (1 if planar else 2)
     lit = sorted(p for l in sol.convolution_links for p in l["receiver_polygons"])
     assert lit == faces
     _, ref, exact = one_quad

@@ -139,6 +139,30 @@ TEST(ClusterTree, PlanarGroupsKeepAFloorModelledWithItsWallsInOneCluster) {
     for (size_t p = 0; p < 144; ++p) EXPECT_EQ(seen[p], 1) << p;
 }
 
+TEST(ClusterTree, PlanarGroupsMakeATriangulatedTableTopOneClusterAndKeepObjectsWhole) {
+    // The cluttered room plus a table (one object): a top of two triangles on four box legs. Its top is
+    // large beside the legs, so in the default tree each triangle hangs from the table's cluster on its own.
+    auto t = clutteredRoom();
+    t.names.push_back("Table");
+    int table = int(t.names.size()) - 1;
+    Rgb wood{0.5, 0.4, 0.3};
+    int top = t.triangle({1, 1, 0.75}, {2.2, 1, 0.75}, {2.2, 1.8, 0.75}, wood, {}, 0, table);
+    t.triangle({1, 1, 0.75}, {2.2, 1.8, 0.75}, {1, 1.8, 0.75}, wood, {}, 0, table);
+    for (double x : {1.0, 2.1})
+        for (double y : {1.0, 1.7}) t.box({x, y, 0.01}, {x + 0.1, y + 0.1, 0.74}, wood, {}, false, table);
+    Scene sc = buildScene(t.input());
+    EXPECT_FALSE(someClusterHoldsExactly(ClusterTree(sc), {top, top + 1}));
+    ClusterTree planar(sc, true);
+    EXPECT_TRUE(someClusterHoldsExactly(planar, {top, top + 1}));
+    // Each small box is still one cluster holding exactly its six faces, and the table one subtree.
+    for (int obj = 2; obj < int(t.names.size()); ++obj) {
+        std::set<int> faces;
+        for (size_t p = 0; p < sc.polygons.size(); ++p)
+            if (sc.polygons[p].object == obj) faces.insert(int(p));
+        EXPECT_TRUE(someClusterHoldsExactly(planar, faces)) << t.names[size_t(obj)];
+    }
+}
+
 TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     auto t = clutteredRoom();
     Scene sc = buildScene(t.input());
