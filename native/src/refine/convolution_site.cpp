@@ -130,7 +130,9 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
         out.pieces.push_back({piece, int(fi), part});
     }
     out.desc.polygon.assign(corners, corners + 4);
-    if (uniform && covered >= rectArea * (1 - 1e-9)) return out;  // the rectangle emits evenly: no image
+    // The rectangle emits evenly: no image. Faces covering more than it overlap (a lamp doubled in place),
+    // and the image then adds up their emission where they do.
+    if (uniform && std::fabs(covered - rectArea) <= 1e-9 * rectArea) return out;
     // The image weights the part by emission; V is the emission-weighted visible fraction.
     EmissionImage& img = out.desc.emission;
     img.width = img.height = kEmissionImage;
@@ -145,10 +147,7 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
                                   t0 + (t1 - t0) * (row + (a + 0.5) / ss) / kEmissionImage);
                     for (const SourcePiece& pc : out.pieces) {
                         const ScenePolygon& face = sc.polygons[size_t(faces[size_t(pc.face)])];
-                        if (insideConvex(pc.geom, face.normal, p)) {
-                            sum += maxComponent(face.emission);
-                            break;
-                        }
+                        if (insideConvex(pc.geom, face.normal, p)) sum += maxComponent(face.emission);
                     }
                 }
             img.texels[size_t(row) * kEmissionImage + size_t(col)] = float(sum / (ss * ss));
