@@ -30,7 +30,7 @@ constexpr int kDisplayFactor = 8;
 // parallel planes 4.1 % of the peak with one part, 1.1 % with 2 x 2, 0.3 % with 4 x 4 (brute force).
 constexpr double kPartRatio = 0.125;
 constexpr int kMaxParts = 4;
-constexpr double kFilledShare = 0.9;
+constexpr double kFilledShare = 0.9;  // faces filling less of their rectangle are separate lamps (planTextures)
 
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
@@ -386,8 +386,8 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
     int needed = std::max(1, int(std::ceil(side / (kPartRatio * std::max(dist, 1e-300)) - 1e-9)));
     int k = std::min(needed, kMaxParts);
     // Separate lamps (their faces fill less than kFilledShare of the rectangle) that would need more parts
-    // than kMaxParts: the parts would be too large for the area weighting (two 0.5 m lamps 1.5 m apart, 2 m
-    // up: worst 3.0 % of the peak, against 1.3 % for each lamp alone), so each lamp takes its own link.
+    // than kMaxParts: the parts would be too large for the area weighting (two 0.5 m lamps 1 m apart, 2 m up:
+    // worst 3.0 % of the peak as one source, 2.2 % as a link per lamp), so each lamp takes its own link.
     // A lamp modelled in several faces fills its rectangle and is clamped to kMaxParts as before.
     if (needed > kMaxParts && faces.size() > 1) {
         double filled = 0;
