@@ -139,6 +139,10 @@ SETTINGS = (
             "its blocker cut into thin slabs near the contact. Off by default: exact contact shadows on furniture "
             "scenes, but on the Cornell box it measured less accurate than the ordinary refinement",
             group="convolution"),
+    Setting("planar_clusters", bool, False, None, "Planar Receivers",
+            "Keep faces that lie in one plane together (a floor or wall modelled in one mesh with the rest of the "
+            "room, a table top made of triangles), so that the whole plane can take one shadow texture. Off by "
+            "default: it changes how the ordinary refinement groups faces", group="convolution"),
     Setting("final_gather", bool, True, None, "Final Gather",
             "Evaluate the light coming straight from the lamps exactly at every texel and vertex (exact form "
             "factors, visibility from the solution) instead of reading it from the patches: no patch blotches "

@@ -88,7 +88,8 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     const Scene& scene = *sol->scene_;
     counters.add(kPolygons, scene.polygons.size());
     rep.warnings = scene.warnings;
-    sol->hierarchy_ = std::make_unique<Hierarchy>(scene, settings.maxElements, settings.clustering);
+    sol->hierarchy_ = std::make_unique<Hierarchy>(scene, settings.maxElements, settings.clustering,
+                                                    settings.planarClusters);
     Hierarchy& h = *sol->hierarchy_;
     rep.seconds["scene"] = clock.lap();
     checkProgress(progress, "visibility", 0.0);

@@ -31,8 +31,9 @@ struct Cluster {
 class ClusterTree {
 public:
     ClusterTree() = default;
-    // Over the polygons that take part in the light transport (receivers and senders).
-    explicit ClusterTree(const Scene& scene);
+    // Over the polygons that take part in the light transport (receivers and senders). With planarGroups,
+    // the faces of one object lying in one plane are kept together (Settings::planarClusters).
+    explicit ClusterTree(const Scene& scene, bool planarGroups = false);
     bool empty() const { return clusters_.empty(); }
     const Cluster& operator[](int c) const { return clusters_[size_t(c)]; }
     size_t size() const { return clusters_.size(); }
@@ -69,6 +70,7 @@ private:
     std::vector<Rgb> classFlux_;
     std::vector<size_t> memberStart_;  // per cluster: where its faces' class indices start
     std::vector<int> memberClass_;     // class index of each face of each cluster
+    bool planarGroups_ = false;
 };
 
 // Links and the solver name nodes by one int: elements are >= 0 (a polygon's root element has the

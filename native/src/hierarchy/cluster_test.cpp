@@ -86,6 +86,83 @@ TEST(ClusterTree, ObjectsStayWholeAndLargeFacesHangHigh) {
     for (int p = 0; p < 6; ++p) EXPECT_EQ(ct.owner(p), 0) << p;
 }
 
+// A room modelled as one mesh: a floor of 8 x 8 faces, four walls of 4 x 4 faces and a ceiling of 4 x 4;
+// a lamp under the ceiling.
+testing::TestScene roomMesh() {
+    testing::TestScene t;
+    t.names = {"Room", "Lamp"};
+    const Rgb rho{0.5, 0.5, 0.5};
+    for (int i = 0; i < 8; ++i)
+        for (int j = 0; j < 8; ++j) {
+            double x = -2 + 0.5 * i, y = -2 + 0.5 * j;
+            t.quad({x, y, 0}, {x + 0.5, y, 0}, {x + 0.5, y + 0.5, 0}, {x, y + 0.5, 0}, rho, {});
+        }
+    for (int i = 0; i < 4; ++i)
+        for (int k = 0; k < 4; ++k) {
+            double a = -2 + i, b = a + 1, z0 = 0.75 * k, z1 = z0 + 0.75;
+            t.quad({a, -2, z0}, {b, -2, z0}, {b, -2, z1}, {a, -2, z1}, rho, {});
+            t.quad({a, 2, z0}, {a, 2, z1}, {b, 2, z1}, {b, 2, z0}, rho, {});
+            t.quad({-2, a, z0}, {-2, a, z1}, {-2, b, z1}, {-2, b, z0}, rho, {});
+            t.quad({2, a, z0}, {2, b, z0}, {2, b, z1}, {2, a, z1}, rho, {});
+            t.quad({a, double(k) - 2, 3}, {a, double(k) - 1, 3}, {b, double(k) - 1, 3}, {b, double(k) - 2, 3}, rho, {});
+        }
+    t.quad({-0.5, -0.5, 2.9}, {-0.5, 0.5, 2.9}, {0.5, 0.5, 2.9}, {0.5, -0.5, 2.9}, {}, {20, 20, 20}, kLightOnly, 1);
+    return t;
+}
+
+// Whether some cluster's subtree holds exactly the polygons in `want`.
+bool someClusterHoldsExactly(const ClusterTree& ct, const std::set<int>& want) {
+    for (size_t c = 0; c < ct.size(); ++c) {
+        const Cluster& cl = ct[int(c)];
+        std::set<int> has(ct.polygons().begin() + cl.begin, ct.polygons().begin() + cl.end);
+        if (has == want) return true;
+    }
+    return false;
+}
+
+TEST(ClusterTree, PlanarGroupsKeepAFloorModelledWithItsWallsInOneCluster) {
+    Scene sc = buildScene(roomMesh().input());
+    // The room's planes: the floor's 64 faces first, then per wall cell the four walls' and the ceiling's.
+    std::vector<std::set<int>> planes(6);
+    for (int p = 0; p < 64; ++p) planes[0].insert(p);
+    for (int p = 64; p < 144; ++p) planes[size_t(1 + (p - 64) % 5)].insert(p);
+    // In space alone, the one object is cut across its planes: no cluster holds the floor and nothing else,
+    // so no convolution link can take the whole floor.
+    ClusterTree spatial(sc);
+    EXPECT_FALSE(someClusterHoldsExactly(spatial, planes[0]));
+    // With planar groups the floor (the largest plane) is split off first, then each plane holding at least
+    // a sixth of what is left: every wall and the ceiling (16 faces of 80, 64, ...) are clusters of their own.
+    ClusterTree planar(sc, true);
+    for (size_t k = 0; k < planes.size(); ++k) EXPECT_TRUE(someClusterHoldsExactly(planar, planes[k])) << "plane " << k;
+    std::vector<int> seen(sc.polygons.size(), 0);  // and every polygon still hangs exactly once
+    for (int p : planar.polygons()) ++seen[size_t(p)];
+    for (size_t p = 0; p < 144; ++p) EXPECT_EQ(seen[p], 1) << p;
+}
+
+TEST(ClusterTree, PlanarGroupsMakeATriangulatedTableTopOneClusterAndKeepObjectsWhole) {
+    // The cluttered room plus a table (one object): a top of two triangles on four box legs. Its top is
+    // large beside the legs, so in the default tree each triangle hangs from the table's cluster on its own.
+    auto t = clutteredRoom();
+    t.names.push_back("Table");
+    int table = int(t.names.size()) - 1;
+    Rgb wood{0.5, 0.4, 0.3};
+    int top = t.triangle({1, 1, 0.75}, {2.2, 1, 0.75}, {2.2, 1.8, 0.75}, wood, {}, 0, table);
+    t.triangle({1, 1, 0.75}, {2.2, 1.8, 0.75}, {1, 1.8, 0.75}, wood, {}, 0, table);
+    for (double x : {1.0, 2.1})
+        for (double y : {1.0, 1.7}) t.box({x, y, 0.01}, {x + 0.1, y + 0.1, 0.74}, wood, {}, false, table);
+    Scene sc = buildScene(t.input());
+    EXPECT_FALSE(someClusterHoldsExactly(ClusterTree(sc), {top, top + 1}));
+    ClusterTree planar(sc, true);
+    EXPECT_TRUE(someClusterHoldsExactly(planar, {top, top + 1}));
+    // Each small box is still one cluster holding exactly its six faces, and the table one subtree.
+    for (int obj = 2; obj < int(t.names.size()); ++obj) {
+        std::set<int> faces;
+        for (size_t p = 0; p < sc.polygons.size(); ++p)
+            if (sc.polygons[p].object == obj) faces.insert(int(p));
+        EXPECT_TRUE(someClusterHoldsExactly(planar, faces)) << t.names[size_t(obj)];
+    }
+}
+
 TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     auto t = clutteredRoom();
     Scene sc = buildScene(t.input());

@@ -41,9 +41,9 @@ void finishElement(Element& e) {
     e.center = p.centroid();
 }
 
-Hierarchy::Hierarchy(const Scene& scene, size_t maxElements, bool clustering)
+Hierarchy::Hierarchy(const Scene& scene, size_t maxElements, bool clustering, bool planarClusters)
     : scene_(scene), maxElements_(maxElements) {
-    if (clustering) clusters_ = ClusterTree(scene);
+    if (clustering) clusters_ = ClusterTree(scene, planarClusters);
     blocks_.reserve(kMaxBlocks);
     numRoots_ = scene.polygons.size();
     if (numRoots_ > maxElements_)

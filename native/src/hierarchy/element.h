@@ -44,7 +44,8 @@ class Hierarchy {
 public:
     // Throws BudgetExceeded when the roots, or later a subdivision, would exceed maxElements.
     // With `clustering`, a cluster tree is built over the polygons (else clusters() is empty).
-    explicit Hierarchy(const Scene& scene, size_t maxElements = size_t(-1), bool clustering = false);
+    explicit Hierarchy(const Scene& scene, size_t maxElements = size_t(-1), bool clustering = false,
+                       bool planarClusters = false);
     const Scene& scene() const { return scene_; }
     const ClusterTree& clusters() const { return clusters_; }
     // Refreshes the clusters' emission from the polygons' current radiosities (their root elements).

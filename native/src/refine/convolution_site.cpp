@@ -30,6 +30,7 @@ constexpr int kDisplayFactor = 8;
 // parallel planes 4.1 % of the peak with one part, 1.1 % with 2 x 2, 0.3 % with 4 x 4 (brute force).
 constexpr double kPartRatio = 0.125;
 constexpr int kMaxParts = 4;
+constexpr double kFilledShare = 0.9;  // faces filling less of their rectangle are separate lamps (planTextures)
 
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
@@ -129,7 +130,10 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
         out.pieces.push_back({piece, int(fi), part});
     }
     out.desc.polygon.assign(corners, corners + 4);
-    if (uniform && covered >= rectArea * (1 - 1e-9)) return out;  // the rectangle emits evenly: no image
+    // The rectangle emits evenly: no image. Faces covering more than it overlap (a lamp doubled in place),
+    // and the image then adds up their emission where they do; tiles meeting edge to edge may cover it a few
+    // float32 roundings more and still need none.
+    if (uniform && covered >= rectArea * (1 - 1e-9) && covered <= rectArea * (1 + 1e-4)) return out;
     // The image weights the part by emission; V is the emission-weighted visible fraction.
     EmissionImage& img = out.desc.emission;
     img.width = img.height = kEmissionImage;
@@ -144,10 +148,7 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
                                   t0 + (t1 - t0) * (row + (a + 0.5) / ss) / kEmissionImage);
                     for (const SourcePiece& pc : out.pieces) {
                         const ScenePolygon& face = sc.polygons[size_t(faces[size_t(pc.face)])];
-                        if (insideConvex(pc.geom, face.normal, p)) {
-                            sum += maxComponent(face.emission);
-                            break;
-                        }
+                        if (insideConvex(pc.geom, face.normal, p)) sum += maxComponent(face.emission);
                     }
                 }
             img.texels[size_t(row) * kEmissionImage + size_t(col)] = float(sum / (ss * ss));
@@ -221,9 +222,9 @@ void ConvolutionSites::nodePolygons(int node, std::vector<int>& out) const {
     std::sort(out.begin(), out.end());
 }
 
-bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) { return evaluate(r, s, &out); }
+bool ConvolutionSites::tryLink(int r, int s, ConvolutionLink& out) { return evaluate(r, s, &out) == Refusal::None; }
 
-bool ConvolutionSites::wouldLink(int r, int s) { return evaluate(r, s, nullptr); }
+bool ConvolutionSites::wouldLink(int r, int s) { return evaluate(r, s, nullptr) == Refusal::None; }
 
 bool ConvolutionSites::linkPossibleBelow(int r, int s, const std::function<bool(int)>& significant) {
     // The largest emitter groups below s: clusters whose senders all emit on one plane, and emitting
@@ -233,8 +234,10 @@ bool ConvolutionSites::linkPossibleBelow(int r, int s, const std::function<bool(
         int n = stack.back();
         stack.pop_back();
         if (!isClusterNode(n) || emitterGroup_[size_t(clusterIndex(n))]) {
-            if (sourceHasEmitters(n) && significant(n) && wouldLink(r, n)) return true;
-            continue;
+            if (!sourceHasEmitters(n) || !significant(n)) continue;
+            Refusal why = evaluate(r, n, nullptr);
+            if (why == Refusal::None) return true;
+            if (why != Refusal::TooWide || !isClusterNode(n)) continue;  // lamps too far apart: try each
         }
         const ClusterTree& ct = h_.clusters();
         const Cluster& c = ct[clusterIndex(n)];
@@ -266,7 +269,8 @@ CounterId counterOf(ConvolutionSites::Refusal why) {
     switch (why) {
     case ConvolutionSites::Refusal::NoBlocker: return kNoBlocker;
     case ConvolutionSites::Refusal::Intruder: return kIntruder;
-    case ConvolutionSites::Refusal::TooCoarse: return kTooCoarse;
+    case ConvolutionSites::Refusal::TooCoarse:
+    case ConvolutionSites::Refusal::TooWide: return kTooCoarse;
     case ConvolutionSites::Refusal::TooSlow: return kTooSlow;
     default: return kInvalid;
     }
@@ -277,19 +281,16 @@ CounterId counterOf(ConvolutionSites::Refusal why) {
 // Like Embree's Scene::commit_internal handing each geometry type to its builder, evaluate() runs the
 // tests of the file's head as steps, each returning why it refuses (Refusal::None: go on). Without
 // `out` it only asks whether a link would pass every test: nothing is counted or computed.
-bool ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
+ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     Site site;
-    if (selectSource(r, s, site) != Refusal::None) return false;  // not a site: not counted
+    if (selectSource(r, s, site) != Refusal::None) return Refusal::NotASite;  // not counted
     if (out) counters_.add(kTried);
     Refusal why = selectBlockers(site);
     if (why == Refusal::None) why = planTextures(site);
     if (why == Refusal::None) why = withinTimeBudget(site);
     if (why == Refusal::None && out) why = computeTextures(site, *out);
-    if (why != Refusal::None) {
-        if (out) counters_.add(counterOf(why));
-        return false;
-    }
-    return true;
+    if (why != Refusal::None && out) counters_.add(counterOf(why));
+    return why;
 }
 
 // Test 2: r a planar receiver, s an emitter group; the faces of s turned toward r are the source, and
@@ -383,7 +384,17 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
         dist = std::min(dist, dot(c - site.splane->geom.v[0], site.splane->normal));
     }
     double side = std::max(frame.s1 - frame.s0, frame.t1 - frame.t0);
-    int k = std::clamp(int(std::ceil(side / (kPartRatio * std::max(dist, 1e-300)) - 1e-9)), 1, kMaxParts);
+    int needed = std::max(1, int(std::ceil(side / (kPartRatio * std::max(dist, 1e-300)) - 1e-9)));
+    int k = std::min(needed, kMaxParts);
+    // Separate lamps (their faces fill less than kFilledShare of the rectangle) that would need more parts
+    // than kMaxParts: the parts would be too large for the area weighting (two 0.5 m lamps 1 m apart, 2 m up:
+    // worst 3.0 % of the peak as one source, 2.2 % as a link per lamp), so each lamp takes its own link.
+    // A lamp modelled in several faces fills its rectangle and is clamped to kMaxParts as before.
+    if (needed > kMaxParts && faces.size() > 1) {
+        double filled = 0;
+        for (int p : faces) filled += sc.polygons[size_t(p)].area;
+        if (filled < kFilledShare * (frame.s1 - frame.s0) * (frame.t1 - frame.t0)) return Refusal::TooWide;
+    }
     try {
         ConvolutionPlan plan = planSoftShadow(whole, site.tris, rec, cs);
         if (plan.slices.empty()) return Refusal::NoBlocker;

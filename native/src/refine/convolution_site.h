@@ -43,11 +43,13 @@ public:
 
     // Why a pair is not served by a convolution link. NotASite is not counted (the pair never reached
     // the blocker selection); the others are, as convolution_refused/<reason>.
-    enum class Refusal { None, NotASite, NoBlocker, Intruder, Invalid, TooCoarse, TooSlow };
+    // TooWide: a source of separate lamps too wide for kMaxParts parts of its distance to the receiver;
+    // counted as too_coarse, and the refiner looks for links from its lamps instead (linkPossibleBelow).
+    enum class Refusal { None, NotASite, NoBlocker, Intruder, Invalid, TooCoarse, TooSlow, TooWide };
 
 private:
     struct Site;  // a pair's polygons, boxes, blockers and plans, filled in by the steps below
-    bool evaluate(int r, int s, ConvolutionLink* out);
+    Refusal evaluate(int r, int s, ConvolutionLink* out);
     Refusal selectSource(int r, int s, Site& site) const;  // test 2
     Refusal selectBlockers(Site& site) const;              // test 3
     Refusal planTextures(Site& site) const;                // test 4

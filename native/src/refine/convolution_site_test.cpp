@@ -172,6 +172,56 @@ TEST(ConvolutionSites, ATimeBudgetTooSmallIsRefusedAsTooSlow) {
     EXPECT_EQ(s.refused(), 1u);
 }
 
+// The floor of floorUnderLamp under a 0.4 m card at z = 0.5 and two 0.25 m lamps `gap` apart at height z, one
+// object, so that the cluster tree keeps them in one cluster.
+TestScene floorUnderTwoLamps(double gap, double z) {
+    TestScene t;
+    t.names = {"Floor", "Lamps", "Card"};
+    t.quad({-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, {0.5, 0.5, 0.5}, {}, 0, 0);
+    double s = 0.125, c = (0.25 + gap) / 2;
+    for (int k = 0; k < 2; ++k) {
+        double x = k ? c : -c;
+        t.quad({x - s, -s, z}, {x - s, s, z}, {x + s, s, z}, {x + s, -s, z}, {}, {10, 10, 10}, kLightOnly, 1);
+    }
+    t.quad({-0.2, -0.2, 0.5}, {0.2, -0.2, 0.5}, {0.2, 0.2, 0.5}, {-0.2, 0.2, 0.5}, {0.5, 0.5, 0.5}, {}, 0, 2);
+    return t;
+}
+
+struct ClusteredSites : testing::SolverParts {
+    std::unique_ptr<ConvolutionSites> sites;
+    int pair = -1;  // the cluster node holding exactly the two lamps
+    explicit ClusteredSites(const TestScene& t) : SolverParts(t, Settings{}) {
+        setFftCostConstant(1e-9);
+        sites = std::make_unique<ConvolutionSites>(*h, *rays, Settings{}, counters);
+        const ClusterTree& ct = h->clusters();
+        for (size_t c = 0; c < ct.size(); ++c) {
+            std::vector<int> polys(ct.polygons().begin() + ct[int(c)].begin, ct.polygons().begin() + ct[int(c)].end);
+            std::sort(polys.begin(), polys.end());
+            if (polys == std::vector<int>{1, 2}) pair = clusterNode(int(c));
+        }
+    }
+};
+
+TEST(ConvolutionSites, SeparateLampsTooWideForTheirPartsAreLinkedOneByOne) {
+    // 1 m up, lamps 0.5 m apart: their 0.75 m rectangle would need 6 parts a side of 1/8 of the distance, and
+    // the lamps fill a third of it. The pair is refused (as too coarse), each lamp is a site, and
+    // linkPossibleBelow finds them below the pair.
+    ClusteredSites s(floorUnderTwoLamps(0.5, 1.0));
+    ASSERT_TRUE(isClusterNode(s.pair));
+    ConvolutionLink l;
+    EXPECT_FALSE(s.sites->tryLink(0, s.pair, l));
+    EXPECT_EQ(s.counters.values().at("convolution_refused/too_coarse"), 1u);
+    EXPECT_TRUE(s.sites->wouldLink(0, 1));
+    EXPECT_TRUE(s.sites->wouldLink(0, 2));
+    EXPECT_TRUE(s.sites->linkPossibleBelow(0, s.pair, [](int) { return true; }));
+    // 4 m up the same rectangle needs 2 parts a side: one source holding both lamps.
+    ClusteredSites high(floorUnderTwoLamps(0.5, 4.0));
+    ASSERT_TRUE(isClusterNode(high.pair));
+    ASSERT_TRUE(high.sites->tryLink(0, high.pair, l));
+    EXPECT_EQ(l.sourcePolygons, (std::vector<int>{1, 2}));
+    EXPECT_EQ(l.textures.size(), 4u);
+}
+
 TEST(ConvolutionSites, AReceiverIsNeverItsOwnSource) {
     Sites s(floorUnderLamp(Card::Floating));
     ConvolutionLink l;

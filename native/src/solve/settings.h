@@ -54,6 +54,11 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        so the pair can take a texture. Off by default: on the Cornell box its floor's one texture moved the  \
        per-face error against Cycles from 1.17 % to 1.52 % (box-on-floor scenes: 2.4 % -> 0.7 % RMS). */   \
     X(bool, contactSlabs, "contact_slabs", false, '[', 0, 1, ']')                                          \
+    /* Planar clusters (issue 12): the cluster tree keeps faces lying in one plane together, so a floor or   \
+       wall modelled in one mesh with others, or a triangulated table top, is one planar cluster, one        \
+       convolution receiver. Off by default: flat clusters make fewer cluster links (a tessellated furnace   \
+       box: 884 -> 0). */                                                                                    \
+    X(bool, planarClusters, "planar_clusters", false, '[', 0, 1, ']')                                      \
     /* Final gather: the emitters' light is evaluated exactly at every bake point (form factor times         \
        visibility) instead of read from the elements; the hierarchy carries the reflected remainder. */     \
     X(bool, finalGather, "final_gather", true, '[', 0, 1, ']')                                             \

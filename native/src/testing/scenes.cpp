@@ -22,7 +22,7 @@ int TestScene::quad(Vec3 a, Vec3 b, Vec3 c, Vec3 d, Rgb rho, Rgb emit, uint8_t f
 }
 
 SolverParts::SolverParts(const TestScene& t, const Settings& s) : scene(buildScene(t.input())) {
-    h = std::make_unique<Hierarchy>(scene, s.maxElements, s.clustering);
+    h = std::make_unique<Hierarchy>(scene, s.maxElements, s.clustering, s.planarClusters);
     rays = std::make_unique<RayCaster>(scene);
 }
 
