@@ -500,7 +500,8 @@ void bindSolver(py::module_& m) {
             if (!many) return std::move(files[0]);
             py::list out;
             for (auto& f : files) out.append(std::move(f));
-            return std::move(out);
+            // Converted explicitly: GCC 14 (Debian sid) flags std::move here as redundant, GCC 12 would copy.
+            return py::object(std::move(out));
         },
         py::arg("pixels"));
 }
