@@ -413,21 +413,20 @@ def element_floor(ex, resolution, texels):
     `min_edge`): `texels` texel sizes of the object's lightmap, so that a hall is meshed as finely as its
     lightmaps can show and a small object no finer than they can. 0 (the solver's min_size rule) for faces
     that get no lightmap: lamps, instances and objects the bake skips."""
-    floor = np.zeros(len(ex.polygons), np.float32)
     if not len(ex.polygons):
-        return floor
+        return np.zeros(0, np.float32)
     v, p = ex.vertices.astype(np.float64), ex.polygons
     a, b, c = v[p[:, 0]], v[p[:, 1]], v[p[:, 2]]
     d = np.where((p[:, 3] >= 0)[:, None], v[np.maximum(p[:, 3], 0)], b)
     area = 0.5 * np.linalg.norm(np.cross(c - a, d - b), axis=1)
     per_object = np.bincount(ex.object_index, weights=area, minlength=len(ex.object_names))
     baked = set(ex.bake_objects)
+    edge = np.zeros(len(ex.object_names))
     for k, name in enumerate(ex.object_names):
         if name in baked and per_object[k] > 0:
             tiles = max(1, len(ex.instances.get(name, ())) + (name not in ex.instance_only))
-            texel = np.sqrt(per_object[k] * tiles / (UV_FILL * resolution * resolution))
-            floor[ex.object_index == k] = texels * texel
-    return floor
+            edge[k] = texels * np.sqrt(per_object[k] * tiles / (UV_FILL * resolution * resolution))
+    return edge[ex.object_index].astype(np.float32)
 
 
 def export_scene(scene, view_layer, depsgraph, selection_only=False, progress=None, instance_lightmaps=False):

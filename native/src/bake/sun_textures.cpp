@@ -44,9 +44,6 @@ Extent boxExtent(const SunFrame& f, const Bounds& b) {
     return e;
 }
 
-// Whether something of extent `e` can cross a ray from the receiver (extent r) to the sun: nearer the sun
-// than the receiver's far side, and across the rays within the receiver's extent widened by the penumbra
-// (tan(angle / 2) times the largest depth between them).
 // Whether q stands more than `lift` in front of p's plane anywhere (on or behind it, it cannot cut a ray
 // leaving p), and the height of its lowest vertex over that plane.
 struct Standing {
@@ -67,6 +64,9 @@ void appendTriangles(const ScenePolygon& q, std::vector<BlockerTriangle>& out) {
     for (int k = 1; k + 1 < q.geom.n; ++k) out.push_back({q.geom.v[0], q.geom.v[k], q.geom.v[k + 1]});
 }
 
+// Whether something of extent `e` can cross a ray from the receiver (extent r) to the sun: nearer the sun
+// than the receiver's far side, and across the rays within the receiver's extent widened by the penumbra
+// (tan(angle / 2) times the largest depth between them).
 bool inPrism(const Extent& r, const Extent& e, double t) {
     if (!(e.z0 < r.z1)) return false;
     double m = t * (r.z1 - e.z0) * 1.01;

@@ -105,10 +105,10 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
         if (p.receives && maxComponent(p.rho) > 0) area += p.area;
     }
     // On a large open floor that mean is tiny wherever the lamps are small: a 20 cm lamp over a 100 m floor
-    // refined every element within ~15 m of it to the smallest size. The bound is therefore never below a
-    // tenth of the brightest irradiance one emitter gives the first face straight in front of it (a disk
-    // of its area at that distance): rooms keep their bound (it is larger), open floors stop where the
-    // light has fallen to 1e-4 of that lamp's peak instead of 1e-6.
+    // refined every element within ~15 m of it to the smallest size. The bound is therefore never below
+    // the brightest irradiance one emitter gives the first face straight in front of it (a disk of its
+    // area at that distance): rooms keep their bound (it is larger); that floor went from 38.9k to 5.8k
+    // elements at the same accuracy (native/python/test_min_edge.py).
     double peak = 0;
     for (const ScenePolygon& p : sc.polygons) {
         double e = maxComponent(p.emission);
