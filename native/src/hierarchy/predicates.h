@@ -20,9 +20,11 @@ inline bool bouncesLight(const ScenePolygon& p) { return p.diffuseVisible || emi
 inline bool sendsLight(const ScenePolygon& p) { return emits(p) || (maxComponent(p.rho) > 0 && p.diffuseVisible); }
 
 // A cluster is in its far field when its radius is at most kFarField of the distance. There the
-// centre's direction stands for every face's to within about 12 degrees (node.cpp's irradiance
-// estimate), and a cluster source is linked (refiner.cpp): 0.3 and 0.4 measured 1.74 % and 2.08 %
-// against Cycles on the Cornell box, 0.2 gives 1.65 %, as without clusters (1.64 %).
+// centre's direction stands for every face's to within about 12 degrees, and its light is evaluated
+// by normal class from the centre (node.cpp's fluxAt); nearer, face by face. Whether a cluster
+// source is linked whole is Settings::farField's (when this constant decided it too, 0.3 and 0.4
+// measured 1.74 % and 2.08 % against Cycles on the Cornell box, 0.2 1.65 %; visibility was then
+// sampled by area).
 inline constexpr double kFarField = 0.2;
 
 // How far a point handed in may lie off its own plane through float32 rounding alone: a few ulps of

@@ -494,11 +494,11 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     Bounds rgrown = rb;
     rgrown.extend(rb.lo - Vec3{gap, gap, gap});
     rgrown.extend(rb.hi + Vec3{gap, gap, gap});
-    // A cluster source emits from its centre by normal class, which is right only in its far field:
-    // nearer, 1/r^2 averaged over its faces exceeds 1/r^2 at the centre and the transfer comes out low,
-    // so such pairs are split instead. (A cluster receiver's faces each gather at their own centre.)
+    // A near cluster source is opened: its one visible share stands for faces that see the receiver
+    // from ever more different places. (Its light is evaluated face by face where it is near, node.cpp;
+    // a cluster receiver's faces each gather at their own centre.)
     double dist = length(nodeCenter(h_, ri) - nodeCenter(h_, si));
-    bool sourceFar = !isClusterNode(si) || h_.clusters()[clusterIndex(si)].radius <= kFarField * dist;
+    bool sourceFar = !isClusterNode(si) || h_.clusters()[clusterIndex(si)].radius <= settings_.farField * dist;
     if (ri != si && !overlaps(rgrown, sb) && sourceFar &&
         receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
         Link l;
@@ -574,20 +574,36 @@ bool Refiner::sampleNode(int node, const Vec3& toward, bool receiver, uint64_t s
     }
     const ClusterTree& ct = h_.clusters();
     const Cluster& c = ct[clusterIndex(node)];
-    std::vector<double> cdf;
+    // A source's points are drawn by the light each face sends toward `toward` (radiosity x area x
+    // cosine / r^2), so the rays' visible share is the share of the transfer that gets through, which is
+    // what the link multiplies its unoccluded transfer by. Drawn by area, a near cluster's dark or far
+    // faces counted as much as the bright near ones: with sources linked up to half their distance
+    // (far_field 0.5) the 5k office's bias against Cycles went from -1.1 to -3.0 % at epsilon 0.002 by
+    // area and to -0.6 % by light. Before any radiosity is known (every face dark) they go by area.
+    std::vector<double> cdf, lightCdf;
     std::vector<int> polys;
-    double total = 0;
+    double total = 0, lightTotal = 0;
     for (int k = c.begin; k < c.end; ++k) {
         int p = ct.polygons()[k];
         const ScenePolygon& sp = sc.polygons[p];
         if (receiver ? !receivesLight(sp) || h_.buried(p) : !sends(p)) continue;
-        double w = sp.area * std::max(0.0, dot(sp.normal, normalize(toward - h_[p].center)));
+        Vec3 d = toward - h_[p].center;
+        double w = sp.area * std::max(0.0, dot(sp.normal, normalize(d)));
         if (w <= 0) continue;
         total += w;
         cdf.push_back(total);
         polys.push_back(p);
+        if (!receiver) {
+            const Rgb& b = h_[p].B;
+            lightTotal += w * (b.x + b.y + b.z) / std::max(length2(d), 1e-300);
+            lightCdf.push_back(lightTotal);
+        }
     }
     if (total <= 0) return false;
+    if (lightTotal > 0) {
+        cdf.swap(lightCdf);
+        total = lightTotal;
+    }
     for (int i = 0; i < n; ++i) {
         double u = (i + rng.next()) / n * total;
         size_t j = std::min(size_t(std::lower_bound(cdf.begin(), cdf.end(), u) - cdf.begin()), cdf.size() - 1);
