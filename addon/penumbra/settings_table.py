@@ -143,6 +143,11 @@ SETTINGS = (
             "Keep faces that lie in one plane together (a floor or wall modelled in one mesh with the rest of the "
             "room, a table top made of triangles), so that the whole plane can take one shadow texture. Off by "
             "default: it changes how the ordinary refinement groups faces", group="convolution"),
+    Setting("wall_links", bool, False, None, "Wall Shadow Textures",
+            "Let a surface steep to a lamp (a wall under a ceiling lamp) take shadow textures too, cut into "
+            "horizontal bands below the lamp. Off by default: textures are made only where the blockers are flat "
+            "along the lamp's axis (shelves, table tops); furniture with tall faces is left to the ordinary "
+            "refinement", group="convolution"),
     Setting("final_gather", bool, True, None, "Final Gather",
             "Evaluate the light coming straight from the lamps exactly at every texel and vertex (exact form "
             "factors, visibility from the solution) instead of reading it from the patches: no patch blotches "

@@ -59,6 +59,10 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        convolution receiver. Off by default: flat clusters make fewer cluster links (a tessellated furnace   \
        box: 884 -> 0). */                                                                                    \
     X(bool, planarClusters, "planar_clusters", false, '[', 0, 1, ']')                                      \
+    /* Wall links (issue 12): a receiver steep to its source (a wall under a ceiling lamp) is cut into      \
+       bands of depth along the source's normal, each with its own textures, the blockers clipped above the  \
+       band. Off by default: measured exact only for blockers flat along the lamp's normal (docs/convolution.md). */ \
+    X(bool, wallLinks, "wall_links", false, '[', 0, 1, ']')                                                \
     /* Final gather: the emitters' light is evaluated exactly at every bake point (form factor times         \
        visibility) instead of read from the elements; the hierarchy carries the reflected remainder. */     \
     X(bool, finalGather, "final_gather", true, '[', 0, 1, ']')                                             \
