@@ -299,9 +299,10 @@ ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLi
     Refusal why = selectBlockers(site);
     if (why == Refusal::None) {
         // A wall under a ceiling lamp: no frame orders source, blocker and whole receiver in depth (Invalid), or
-        // the wall reaches above the lamp's plane; cut into bands below the lamp instead (wall_links).
+        // one does but the wall's depth range is too wide for one kernel per slab (TooCoarse), or the wall
+        // reaches above the lamp's plane; cut into bands below the lamp instead (wall_links).
         why = site.straddles ? Refusal::Invalid : planTextures(site);
-        if (why == Refusal::Invalid && site.steep) {
+        if ((why == Refusal::Invalid || why == Refusal::TooCoarse) && site.steep) {
             site.parts.clear();
             site.plans.clear();
             site.partSettings.clear();
