@@ -485,6 +485,11 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
         const Polygon& g = sc.polygons[size_t(p)].geom;
         for (int k = 0; k < g.n; ++k) dMax = std::max(dMax, dot(g.v[k] - rp.geom.v[0], rp.normal));
     }
+    std::vector<Vec3> lampCorners;
+    for (int p : site.faces) {
+        const Polygon& g = sc.polygons[size_t(p)].geom;
+        lampCorners.insert(lampCorners.end(), g.v.begin(), g.v.begin() + g.n);
+    }
     if (!(zTop > planeTol_)) return Refusal::Invalid;  // a blocker reaching the lamp's plane
     if (!(zEnd > zTop)) return Refusal::NoBlocker;     // the receiver is above every blocker
 
@@ -538,6 +543,26 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
                 why = Refusal::Invalid;  // a blocker within reach of the band: thinner bands may clear it
                 break;
             }
+            // Full light when no shadow reaches the band: the shadow lies in the convex hull of the blocker vertices
+            // projected from the lamp's vertices onto the receiver's plane (a projection from a point, and one of
+            // the lamp's plane through a point, keep convex sets convex), so in its depth range.
+            double sLo = HUGE_VAL, sHi = -HUGE_VAL;
+            for (const BlockerTriangle& t : tris[size_t(b)])
+                for (const Vec3& v : t) {
+                    const double dv = dot(v - rp.geom.v[0], rp.normal);
+                    for (const Vec3& x : lampCorners) {
+                        const double dx = dot(x - rp.geom.v[0], rp.normal);
+                        if (!(dv < dx)) {
+                            sLo = -HUGE_VAL;
+                            sHi = HUGE_VAL;
+                            continue;
+                        }
+                        const double zp = depth(x + (v - x) * (dx / (dx - dv)));
+                        sLo = std::min(sLo, zp);
+                        sHi = std::max(sHi, zp);
+                    }
+                }
+            if (sHi < za || sLo > zb) tris[size_t(b)].clear();
             if (recs[size_t(b)].points.size() < 3 || tris[size_t(b)].empty()) continue;  // full light
             try {
                 judged[size_t(b)] = planSoftShadow(whole, tris[size_t(b)], recs[size_t(b)], cs);
