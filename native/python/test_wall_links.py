@@ -102,6 +102,27 @@ def test_behind_a_table_only_the_wall_its_legs_do_not_shadow_takes_links():
     assert err_on.max() <= err_off.max() + 1e-3
 
 
+@pytest.mark.parametrize("turn,lean", [(20, 0), (25, 10)])
+def test_a_wall_turned_and_leaning_under_the_shelf(turn, lean):
+    """The bands follow the lamp's normal, not the wall: a wall turned about the vertical by `turn` degrees and
+    leaning back by `lean` takes banded links as well. Measured: worst 1.50 % and 1.05 % of the peak, mean 0.011 %
+    (standard: 17.5 %, 12.5 %)."""
+    a, t = np.radians(turn), np.radians(lean)
+    e1 = np.array([np.sin(a), np.cos(a), 0]) * 4
+    n = np.array([np.cos(a), -np.sin(a), 0])
+    e2 = (np.array([0, 0, 1]) * np.cos(t) - n * np.sin(t)) * 2.8
+    o = np.array([-1.05, 0, 0]) - e1 / 2
+    scene = contact_scenes.ContactScene((tuple(o), tuple(e1), tuple(e2)), [((-0.75, -0.6, 0.74), (-0.15, 0.6, 0.75))],
+                                        lamp_centre=contact_scenes.WALL_LAMP)
+    pts = scene.sample_points(48)
+    exact = scene.exact_radiance(pts)
+    sol = _native.solve(*scene.args, WALLS)
+    assert sol.report["convolution_links"] >= 1 and sol.report["rays"] < 0.5 * _native.solve(
+        *scene.args, dict(WALLS, wall_links=False)).report["rays"]
+    err = np.abs(radiance(sol, scene, pts) - exact) / exact.max()
+    assert err.max() < 0.025 and err.mean() < 0.001
+
+
 def test_banded_link_is_the_same_with_two_threads(shelf):
     scene, pts, _ = shelf
     one = radiance(_native.solve(*scene.args, WALLS), scene, pts)
