@@ -271,7 +271,8 @@ struct ConvolutionSites::Site {
     bool steep = false, straddles = false;
     std::vector<double> bandDepths;
     std::vector<std::vector<BlockerTriangle>> bandTris;
-    Vec3 bandOrigin, bandAxis;
+    std::vector<std::pair<double, double>> bandSpans;
+    Vec3 bandOrigin, bandAxis, bandAcross;
 };
 
 namespace {
@@ -474,6 +475,7 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
     const ScenePolygon& rp = *site.rplane;
     const Vec3 axis = sp.normal, org = sp.geom.v[0];
     auto depth = [&](const Vec3& p) { return dot(p - org, axis); };
+    const Vec3 across = normalize(cross(axis, rp.normal));  // along the receiver at one depth (it is steep)
     double zTop = HUGE_VAL, zEnd = -HUGE_VAL, dMax = 0;
     for (const BlockerTriangle& t : site.tris)
         for (const Vec3& v : t) zTop = std::min(zTop, depth(v));
@@ -520,6 +522,7 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
         auto tris = std::vector<std::vector<BlockerTriangle>>(size_t(B));
         auto recs = std::vector<ReceiverDesc>(size_t(B));
         auto judged = std::vector<ConvolutionPlan>(size_t(B));
+        auto spans = std::vector<std::pair<double, double>>(size_t(B), {-HUGE_VAL, HUGE_VAL});
         double worst = 0;
         bool ok = true;
         for (int b = 0; b < B && ok; ++b) {
@@ -546,23 +549,37 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
             // Full light when no shadow reaches the band: the shadow lies in the convex hull of the blocker vertices
             // projected from the lamp's vertices onto the receiver's plane (a projection from a point, and one of
             // the lamp's plane through a point, keep convex sets convex), so in its depth range.
-            double sLo = HUGE_VAL, sHi = -HUGE_VAL;
+            // Its extent across (along the receiver at one depth) bounds the band's texture too: outside it the
+            // link reads full light, and the window holds only the part a shadow can reach.
+            double sLo = HUGE_VAL, sHi = -HUGE_VAL, aLo = HUGE_VAL, aHi = -HUGE_VAL;
             for (const BlockerTriangle& t : tris[size_t(b)])
                 for (const Vec3& v : t) {
                     const double dv = dot(v - rp.geom.v[0], rp.normal);
                     for (const Vec3& x : lampCorners) {
                         const double dx = dot(x - rp.geom.v[0], rp.normal);
                         if (!(dv < dx)) {
-                            sLo = -HUGE_VAL;
-                            sHi = HUGE_VAL;
+                            sLo = aLo = -HUGE_VAL;
+                            sHi = aHi = HUGE_VAL;
                             continue;
                         }
-                        const double zp = depth(x + (v - x) * (dx / (dx - dv)));
-                        sLo = std::min(sLo, zp);
-                        sHi = std::max(sHi, zp);
+                        const Vec3 q = x + (v - x) * (dx / (dx - dv));
+                        sLo = std::min(sLo, depth(q));
+                        sHi = std::max(sHi, depth(q));
+                        aLo = std::min(aLo, dot(q - org, across));
+                        aHi = std::max(aHi, dot(q - org, across));
                     }
                 }
             if (sHi < za || sLo > zb) tris[size_t(b)].clear();
+            spans[size_t(b)] = {aLo - tol_, aHi + tol_};
+            if (std::isfinite(aLo) && std::isfinite(aHi) && !tris[size_t(b)].empty()) {
+                recs[size_t(b)].points.clear();
+                for (int p : site.rpolys) {
+                    Polygon c = clipped(sc.polygons[size_t(p)].geom, za, zb);
+                    c = clipToHalfSpace(c, org + across * spans[size_t(b)].first, across);
+                    c = clipToHalfSpace(c, org + across * spans[size_t(b)].second, across * -1.0);
+                    for (int k = 0; k < c.n; ++k) recs[size_t(b)].points.push_back(c.v[k]);
+                }
+            }
             if (recs[size_t(b)].points.size() < 3 || tris[size_t(b)].empty()) continue;  // full light
             try {
                 judged[size_t(b)] = planSoftShadow(whole, tris[size_t(b)], recs[size_t(b)], cs);
@@ -627,6 +644,8 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
         site.judged = worst;
         site.bandDepths = std::move(z);
         site.bandTris = std::move(tris);
+        site.bandSpans = std::move(spans);
+        site.bandAcross = across;
         site.bandOrigin = org;
         site.bandAxis = axis;
         return Refusal::None;
@@ -664,6 +683,8 @@ ConvolutionSites::Refusal ConvolutionSites::computeTextures(Site& site, Convolut
         out.bandDepths = site.bandDepths;
         out.bandOrigin = site.bandOrigin;
         out.bandAxis = site.bandAxis;
+        out.bandAcross = site.bandAcross;
+        out.bandSpans = site.bandSpans;
     } catch (const std::domain_error&) {
         return Refusal::Invalid;
     }

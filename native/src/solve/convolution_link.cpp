@@ -53,7 +53,10 @@ void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y
         const double z = dot(y - l.bandOrigin, l.bandAxis);
         auto it = std::upper_bound(l.bandDepths.begin(), l.bandDepths.end(), z);
         lit = it == l.bandDepths.begin();
-        first = std::min(bands - 1, size_t(std::max<ptrdiff_t>(0, it - l.bandDepths.begin() - 1))) * parts;
+        const size_t band = std::min(bands - 1, size_t(std::max<ptrdiff_t>(0, it - l.bandDepths.begin() - 1)));
+        const double a = dot(y - l.bandOrigin, l.bandAcross);
+        lit = lit || a < l.bandSpans[band].first || a > l.bandSpans[band].second;
+        first = band * parts;
     }
     vis.resize(parts);
     for (size_t j = 0; j < vis.size(); ++j) {

@@ -15,6 +15,7 @@
 // radiosity less that mean, plus rho * I(y) / pi evaluated at every point: ConvolutionField.
 #pragma once
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "convolution/soft_shadow.h"
@@ -42,6 +43,9 @@ struct ConvolutionLink {
     // Empty bandDepths: one texture per part for the whole receiver.
     std::vector<double> bandDepths;
     Vec3 bandOrigin, bandAxis;  // depth = dot(y - bandOrigin, bandAxis)
+    // Per band, the range of dot(y - bandOrigin, bandAcross) a shadow can reach; outside it, full light.
+    Vec3 bandAcross;
+    std::vector<std::pair<double, double>> bandSpans;
     int blockerTriangles = 0;
     double error = 0;                  // E_rr, in texels of half the narrowest penumbra (what e_max bounds)
 };
