@@ -294,6 +294,9 @@ TEST(ConvolutionSites, AWallUnderAShelfTakesABandedLink) {
     const Vec3 high{-1, 0.3, 1.5};
     EXPECT_GT(unoccluded(high), 0);
     EXPECT_DOUBLE_EQ(delivered(high), unoccluded(high));
+    // At the shadow's height but along the wall beyond its hull (the shelf ends at y = 0.6): full light.
+    const Vec3 aside{-1, 1.95, 0.3};
+    EXPECT_DOUBLE_EQ(delivered(aside), unoccluded(aside));
     double darkest = 1;
     for (double z = 0.05; z < 0.74; z += 0.05) darkest = std::min(darkest, delivered({-1, 0, z}) / unoccluded({-1, 0, z}));
     EXPECT_LT(darkest, 0.5);
