@@ -143,6 +143,11 @@ SETTINGS = (
             "Keep faces that lie in one plane together (a floor or wall modelled in one mesh with the rest of the "
             "room, a table top made of triangles), so that the whole plane can take one shadow texture. Off by "
             "default: it changes how the ordinary refinement groups faces", group="convolution"),
+    Setting("wall_links", bool, False, None, "Wall Shadow Textures",
+            "Let a surface steep to a lamp (a wall under a ceiling lamp) take shadow textures too, cut into "
+            "horizontal bands below the lamp. Off by default: textures are made only where the blockers are flat "
+            "along the lamp's axis (shelves, table tops); furniture with tall faces is left to the ordinary "
+            "refinement", group="convolution"),
     Setting("far_field", float, 0.2, ("(", 0.0, 1.0, "]"), "Cluster Far Field",
             "A group of objects sends its bounced light over one link once it is farther than its own radius "
             "divided by this. 0.5 is faster on large scenes (2.4 times fewer links on a 10,000-polygon office) "

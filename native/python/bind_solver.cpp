@@ -302,17 +302,24 @@ void bindSolver(py::module_& m) {
                      };
                      d["receiver_polygons"] = ints(l.receiverPolygons);
                      d["source_polygons"] = ints(l.sourcePolygons);
-                     // One texture per part of the source (it is cut into k x k parts), all n x n.
+                     // One texture per part of the source (it is cut into k x k parts), n x n; a banded link
+                     // (wall_links) has one per band and part, None for a band in full light.
                      py::list textures;
+                     int res = 0, sub = 0;
                      for (const auto& t : l.textures) {
+                         if (!t) {
+                             textures.append(py::none());
+                             continue;
+                         }
                          Array<float> vis({py::ssize_t(t->n), py::ssize_t(t->n)});
                          std::copy(t->visibility.begin(), t->visibility.end(), vis.mutable_data());
                          textures.append(vis);
+                         res = std::max(res, t->n);
+                         sub = std::max(sub, t->subBlockers);
                      }
                      d["textures"] = textures;
-                     d["resolution"] = l.textures.front()->n;
-                     int sub = 0;
-                     for (const auto& x : l.textures) sub = std::max(sub, x->subBlockers);
+                     d["resolution"] = res;
+                     d["bands"] = l.bandDepths.empty() ? 1 : int(l.bandDepths.size()) - 1;
                      d["sub_blockers"] = sub;
                      d["error"] = l.error;
                      d["blocker_triangles"] = l.blockerTriangles;

@@ -117,3 +117,31 @@ def bookcase_against_wall():
     the wall (its back in the wall's plane)."""
     wall = ((-1, -1, 0), (0, 2, 0), (0, 0, 2.2))
     return ContactScene(wall, [((-1, -0.5, 0), (-0.7, 0.5, 1.8))], lamp_centre=(-0.2, 0.0, HEIGHT))
+
+
+# Walls under a ceiling lamp (wall_links): a 4 x 2.8 m wall (x = -1, facing +x) reaching above the lamp's plane,
+# the lamp 1.6 m from it, and black furniture in front of it.
+WALL = ((-1, -2, 0), (0, 4, 0), (0, 0, 2.8))
+WALL_LAMP = (0.6, 0.0, HEIGHT)
+
+
+def shelf_near_wall():
+    """A 1 cm plate (a shelf or a table top without legs) 0.74 m up, 0.25 m clear of the wall."""
+    return ContactScene(WALL, [((-0.75, -0.6, 0.74), (-0.15, 0.6, 0.75))], lamp_centre=WALL_LAMP)
+
+
+def shelf_against_wall():
+    """The same plate, its back edge on the wall."""
+    return ContactScene(WALL, [((-1.0, -0.6, 0.74), (-0.6, 0.6, 0.75))], lamp_centre=WALL_LAMP)
+
+
+def box_near_wall():
+    """A 1.2 m tall box (a cupboard) 0.3 m clear of the wall: its face toward the lamp is tall."""
+    return ContactScene(WALL, [((-0.7, -0.3, 0), (-0.4, 0.3, 1.2))], lamp_centre=WALL_LAMP)
+
+
+def table_near_wall():
+    """A table (top and four 5 cm legs) 0.25 m clear of the wall."""
+    top = ((-0.75, -0.6, 0.71), (-0.15, 0.6, 0.75))
+    legs = [((x, y, 0), (x + 0.05, y + 0.05, 0.71)) for x in (-0.75, -0.2) for y in (-0.6, 0.55)]
+    return ContactScene(WALL, [top] + legs, lamp_centre=WALL_LAMP)

@@ -236,7 +236,8 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     })));
     counters.add(kConvolutionLinks, conv.size());
     for (const ConvolutionLink& l : conv) {
-        for (const auto& t : l.textures) counters.add(kConvolutionTexels, size_t(t->n) * size_t(t->n));
+        for (const auto& t : l.textures)
+            if (t) counters.add(kConvolutionTexels, size_t(t->n) * size_t(t->n));  // null: a band in full light
         rep.convolutionMaxError = std::max(rep.convolutionMaxError, l.error);
     }
     if (const ConvolutionSites* cs = refiner.convolutionSites())

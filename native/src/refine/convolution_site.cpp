@@ -31,6 +31,10 @@ constexpr int kDisplayFactor = 8;
 constexpr double kPartRatio = 0.125;
 constexpr int kMaxParts = 4;
 constexpr double kFilledShare = 0.9;  // faces filling less of their rectangle are separate lamps (planTextures)
+// wall_links: a receiver whose normal is this far from the source's (cosine below it) is steep: cut into bands
+// of depth along the source's normal, from 1 up to kMaxBands (doubling) until every band passes.
+constexpr double kSteep = 0.5;
+constexpr int kMaxBands = 32;
 
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
@@ -261,6 +265,14 @@ struct ConvolutionSites::Site {
     std::vector<ConvolutionPlan> plans;
     std::vector<ConvolutionSettings> partSettings;
     double judged = 0;  // E_rr in the texels of half the narrowest penumbra
+    // wall_links: the receiver is steep to the source (steep), and reaches above its plane (straddles);
+    // a banded plan holds plans[band * parts.size() + part] (empty slices: the band is in full light) and
+    // each band's clipped blockers.
+    bool steep = false, straddles = false;
+    std::vector<double> bandDepths;
+    std::vector<std::vector<BlockerTriangle>> bandTris;
+    std::vector<std::pair<double, double>> bandSpans;
+    Vec3 bandOrigin, bandAxis, bandAcross;
 };
 
 namespace {
@@ -286,7 +298,18 @@ ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLi
     if (selectSource(r, s, site) != Refusal::None) return Refusal::NotASite;  // not counted
     if (out) counters_.add(kTried);
     Refusal why = selectBlockers(site);
-    if (why == Refusal::None) why = planTextures(site);
+    if (why == Refusal::None) {
+        // A wall under a ceiling lamp: no frame orders source, blocker and whole receiver in depth (Invalid), or
+        // one does but the wall's depth range is too wide for one kernel per slab (TooCoarse), or the wall
+        // reaches above the lamp's plane; cut into bands below the lamp instead (wall_links).
+        why = site.straddles ? Refusal::Invalid : planTextures(site);
+        if ((why == Refusal::Invalid || why == Refusal::TooCoarse) && site.steep) {
+            site.parts.clear();
+            site.plans.clear();
+            site.partSettings.clear();
+            why = planBands(site);
+        }
+    }
     if (why == Refusal::None) why = withinTimeBudget(site);
     if (why == Refusal::None && out) why = computeTextures(site, *out);
     if (why != Refusal::None && out) counters_.add(counterOf(why));
@@ -305,15 +328,21 @@ ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& sit
     nodePolygons(r, site.rpolys);
     nodePolygons(s, spolys);
     site.rb = nodeBox(h_, r);
+    const ScenePolygon& rfirst = sc.polygons[size_t(site.rpolys[0])];
     for (int p : spolys) {
         const ScenePolygon& sp = sc.polygons[size_t(p)];
         if (!sendsLight(sp)) continue;
+        bool steep = settings_.wallLinks && std::fabs(dot(sp.normal, rfirst.normal)) < kSteep;
+        site.steep = site.steep || steep;
         int side = sideOf(sp, site.rb, tol_);
-        if (side == 0) return Refusal::NotASite;
-        if (side > 0) site.faces.push_back(p);
+        // A steep receiver reaching above the lamp's plane takes bands below it (planBands): the lamp does not
+        // light the part above, and the link's form factors are zero there.
+        if (side == 0 && steep) site.straddles = true;
+        else if (side == 0) return Refusal::NotASite;
+        if (side >= 0) site.faces.push_back(p);
     }
     if (site.faces.empty()) return Refusal::NotASite;
-    site.rplane = &sc.polygons[size_t(site.rpolys[0])];
+    site.rplane = &rfirst;
     for (int p : site.faces) site.fb.extend(polygonBox(sc.polygons[size_t(p)]));
     // The source must be wholly in front of the receiver.
     if (sideOf(*site.rplane, site.fb, tol_) <= 0) return Refusal::NotASite;
@@ -429,11 +458,207 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
     return site.parts.empty() ? Refusal::Invalid : Refusal::None;
 }
 
+// Test 4 for a receiver steep to its source (wall_links): a wall under a ceiling lamp. Along the lamp's normal the
+// lamp is flat (no source depth spread, no shear), and a receiver point at depth z_y is shadowed only by blocker
+// points shallower than z_y, each with the exact penumbra scale z_r (1/z_b - 1/z_y) of a blocker plane parallel
+// to the lamp. What breaks the depth order is the wall's own depth range, which holds the blockers'. So the
+// receiver is cut into B bands of equal inverse depth below the top of the blockers (above it the whole lamp is
+// seen), and band [z_a, z_b] is convolved with the blockers clipped at z_a. The parts dropped, between z_a and
+// z_b, are exact to leave out when they stand further from the receiver's plane than any segment from the lamp to
+// the band can be at their depth (d_max (z_b - z_a) / z_b, d_max the lamp's greatest distance from that plane);
+// else (a bookcase against the wall) the band is refused. Each band's plan must pass e_max with whole-triangle
+// slabs (no contact sub-blockers: a face cut at a slab boundary leaves a seam whose error E_rr does not see, and
+// a tall face toward the lamp is exactly what a wall's blockers have). B doubles up to kMaxBands.
+ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
+    const Scene& sc = h_.scene();
+    const ScenePolygon& sp = *site.splane;
+    const ScenePolygon& rp = *site.rplane;
+    const Vec3 axis = sp.normal, org = sp.geom.v[0];
+    auto depth = [&](const Vec3& p) { return dot(p - org, axis); };
+    const Vec3 across = normalize(cross(axis, rp.normal));  // along the receiver at one depth (it is steep)
+    double zTop = HUGE_VAL, zEnd = -HUGE_VAL, dMax = 0;
+    for (const BlockerTriangle& t : site.tris)
+        for (const Vec3& v : t) zTop = std::min(zTop, depth(v));
+    for (int p : site.rpolys) {
+        const Polygon& g = sc.polygons[size_t(p)].geom;
+        for (int k = 0; k < g.n; ++k) zEnd = std::max(zEnd, depth(g.v[k]));
+    }
+    for (int p : site.faces) {
+        const Polygon& g = sc.polygons[size_t(p)].geom;
+        for (int k = 0; k < g.n; ++k) dMax = std::max(dMax, dot(g.v[k] - rp.geom.v[0], rp.normal));
+    }
+    std::vector<Vec3> lampCorners;
+    for (int p : site.faces) {
+        const Polygon& g = sc.polygons[size_t(p)].geom;
+        lampCorners.insert(lampCorners.end(), g.v.begin(), g.v.begin() + g.n);
+    }
+    if (!(zTop > planeTol_)) return Refusal::Invalid;  // a blocker reaching the lamp's plane
+    if (!(zEnd > zTop)) return Refusal::NoBlocker;     // the receiver is above every blocker
+
+    SourceFrame frame = sourceFrame(sc, site.faces);
+    SourceDesc whole;
+    whole.polygon = {frame.at(frame.s0, frame.t0), frame.at(frame.s1, frame.t0), frame.at(frame.s1, frame.t1),
+                     frame.at(frame.s0, frame.t1)};
+    ConvolutionSettings cs;
+    cs.e_max = settings_.eMax;
+    cs.contactSlabs = false;
+    cs.direction = DirectionChoice::SourceNormal;
+    cs.maxResolution = settings_.maxTexture;
+    cs.minResolution = std::min(16, settings_.maxTexture);
+    auto clipped = [&](const Polygon& g, double zlo, double zhi) {
+        Polygon c = clipToHalfSpace(g, org + axis * zlo, axis);
+        return clipToHalfSpace(c, org + axis * zhi, axis * -1.0);
+    };
+    auto asPolygon = [](const BlockerTriangle& t) {
+        Polygon g;
+        for (const Vec3& v : t) g.push(v);
+        return g;
+    };
+    Refusal why = Refusal::TooCoarse;
+    for (int B = 1; B <= kMaxBands; B *= 2) {
+        std::vector<double> z(size_t(B) + 1);
+        for (int i = 0; i <= B; ++i) z[size_t(i)] = 1.0 / (1.0 / zTop - (1.0 / zTop - 1.0 / zEnd) * i / B);
+        z[size_t(B)] = zEnd;
+        auto tris = std::vector<std::vector<BlockerTriangle>>(size_t(B));
+        auto recs = std::vector<ReceiverDesc>(size_t(B));
+        auto judged = std::vector<ConvolutionPlan>(size_t(B));
+        auto spans = std::vector<std::pair<double, double>>(size_t(B), {-HUGE_VAL, HUGE_VAL});
+        double worst = 0;
+        bool ok = true;
+        for (int b = 0; b < B && ok; ++b) {
+            const double za = z[size_t(b)], zb = z[size_t(b) + 1];
+            for (int p : site.rpolys) {
+                Polygon c = clipped(sc.polygons[size_t(p)].geom, za, zb);
+                for (int k = 0; k < c.n; ++k) recs[size_t(b)].points.push_back(c.v[k]);
+            }
+            const double reach = dMax * (zb - za) / zb;
+            for (const BlockerTriangle& t : site.tris) {
+                Polygon g = asPolygon(t);
+                Polygon dropped = clipped(g, za, zb);
+                for (int k = 0; k < dropped.n && ok; ++k)
+                    if (dot(dropped.v[k] - rp.geom.v[0], rp.normal) < reach) ok = false;
+                Polygon kept = clipToHalfSpace(g, org + axis * za, axis * -1.0);
+                for (int k = 1; k + 1 < kept.n; ++k)
+                    if (length(cross(kept.v[k] - kept.v[0], kept.v[k + 1] - kept.v[0])) > 0)
+                        tris[size_t(b)].push_back({kept.v[0], kept.v[k], kept.v[k + 1]});
+            }
+            if (!ok) {
+                why = Refusal::Invalid;  // a blocker within reach of the band: thinner bands may clear it
+                break;
+            }
+            // Full light when no shadow reaches the band: the shadow lies in the convex hull of the blocker vertices
+            // projected from the lamp's vertices onto the receiver's plane (a projection from a point, and one of
+            // the lamp's plane through a point, keep convex sets convex), so in its depth range.
+            // Its extent across (along the receiver at one depth) bounds the band's texture too: outside it the
+            // link reads full light, and the window holds only the part a shadow can reach.
+            double sLo = HUGE_VAL, sHi = -HUGE_VAL, aLo = HUGE_VAL, aHi = -HUGE_VAL;
+            for (const BlockerTriangle& t : tris[size_t(b)])
+                for (const Vec3& v : t) {
+                    const double dv = dot(v - rp.geom.v[0], rp.normal);
+                    for (const Vec3& x : lampCorners) {
+                        const double dx = dot(x - rp.geom.v[0], rp.normal);
+                        if (!(dv < dx)) {
+                            sLo = aLo = -HUGE_VAL;
+                            sHi = aHi = HUGE_VAL;
+                            continue;
+                        }
+                        const Vec3 q = x + (v - x) * (dx / (dx - dv));
+                        sLo = std::min(sLo, depth(q));
+                        sHi = std::max(sHi, depth(q));
+                        aLo = std::min(aLo, dot(q - org, across));
+                        aHi = std::max(aHi, dot(q - org, across));
+                    }
+                }
+            if (sHi < za || sLo > zb) tris[size_t(b)].clear();
+            spans[size_t(b)] = {aLo - tol_, aHi + tol_};
+            if (std::isfinite(aLo) && std::isfinite(aHi) && !tris[size_t(b)].empty()) {
+                recs[size_t(b)].points.clear();
+                for (int p : site.rpolys) {
+                    Polygon c = clipped(sc.polygons[size_t(p)].geom, za, zb);
+                    c = clipToHalfSpace(c, org + across * spans[size_t(b)].first, across);
+                    c = clipToHalfSpace(c, org + across * spans[size_t(b)].second, across * -1.0);
+                    for (int k = 0; k < c.n; ++k) recs[size_t(b)].points.push_back(c.v[k]);
+                }
+            }
+            if (recs[size_t(b)].points.size() < 3 || tris[size_t(b)].empty()) continue;  // full light
+            try {
+                judged[size_t(b)] = planSoftShadow(whole, tris[size_t(b)], recs[size_t(b)], cs);
+            } catch (const std::domain_error&) {
+                why = Refusal::Invalid;
+                ok = false;
+                break;
+            } catch (const std::invalid_argument&) {
+                why = Refusal::Invalid;
+                ok = false;
+                break;
+            }
+            const ConvolutionPlan& plan = judged[size_t(b)];
+            worst = std::max(worst, plan.E_rr);
+            // E_rr within e_max. Not planTextures' test of the texel against the narrowest penumbra: a band just
+            // below a blocker always has a nearly sharp one by depth (alpha_min -> 0), while the blocker's shadow
+            // falls far lower on the wall; the textures are made at max_texture there anyway.
+            if (plan.E_rr > settings_.eMax) {
+                why = Refusal::TooCoarse;
+                ok = false;
+            }
+        }
+        if (!ok) continue;
+        // Parts as planTextures, their distance the top of the bands: above it every part is seen whole.
+        double side = std::max(frame.s1 - frame.s0, frame.t1 - frame.t0);
+        int needed = std::max(1, int(std::ceil(side / (kPartRatio * zTop) - 1e-9)));
+        int k = std::min(needed, kMaxParts);
+        if (needed > kMaxParts && site.faces.size() > 1) {
+            double filled = 0;
+            for (int p : site.faces) filled += sc.polygons[size_t(p)].area;
+            if (filled < kFilledShare * (frame.s1 - frame.s0) * (frame.t1 - frame.t0)) return Refusal::TooWide;
+        }
+        for (int a = 0; a < k; ++a)
+            for (int c = 0; c < k; ++c) {
+                double ds = (frame.s1 - frame.s0) / k, dt = (frame.t1 - frame.t0) / k;
+                SourcePart part = sourcePart(sc, site.faces, frame, frame.s0 + ds * c, frame.s0 + ds * (c + 1),
+                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(site.parts.size()));
+                if (!part.pieces.empty()) site.parts.push_back(std::move(part));
+            }
+        if (site.parts.empty()) return Refusal::Invalid;
+        try {
+            for (int b = 0; b < B; ++b) {
+                const ConvolutionPlan& plan = judged[size_t(b)];
+                for (const SourcePart& part : site.parts) {
+                    ConvolutionSettings fine = cs;
+                    if (plan.slices.empty()) {
+                        site.plans.emplace_back();
+                    } else {
+                        fine.resolution = std::clamp(plan.n * kDisplayFactor, std::min(kMinTexture, settings_.maxTexture),
+                                                     settings_.maxTexture);
+                        fine.e_max = cs.e_max * double(fine.resolution) / plan.n;
+                        site.plans.push_back(planSoftShadow(part.desc, tris[size_t(b)], recs[size_t(b)], fine));
+                    }
+                    site.partSettings.push_back(fine);
+                }
+            }
+        } catch (const std::domain_error&) {
+            return Refusal::Invalid;
+        } catch (const std::invalid_argument&) {
+            return Refusal::Invalid;
+        }
+        site.judged = worst;
+        site.bandDepths = std::move(z);
+        site.bandTris = std::move(tris);
+        site.bandSpans = std::move(spans);
+        site.bandAcross = across;
+        site.bandOrigin = org;
+        site.bandAxis = axis;
+        return Refusal::None;
+    }
+    return why;
+}
+
 // Test 5: the predicted FFT time of all the parts' textures within t_max.
 ConvolutionSites::Refusal ConvolutionSites::withinTimeBudget(const Site& site) const {
     double predicted = 0;
     for (const ConvolutionPlan& p : site.plans)
-        predicted += predictedSeconds(p.fftSize, int(std::max<size_t>(1, p.slices.size())));
+        if (site.bandDepths.empty() || !p.slices.empty())  // an empty band costs nothing
+            predicted += predictedSeconds(p.fftSize, int(std::max<size_t>(1, p.slices.size())));
     return predicted > settings_.tMax ? Refusal::TooSlow : Refusal::None;
 }
 
@@ -442,11 +667,24 @@ ConvolutionSites::Refusal ConvolutionSites::computeTextures(Site& site, Convolut
     out.textures.clear();
     out.pieces.clear();
     try {
-        for (size_t j = 0; j < site.parts.size(); ++j) {
-            out.textures.push_back(std::make_shared<const SoftShadowTexture>(
-                computeSoftShadow(site.plans[j], site.parts[j].desc, site.tris, site.partSettings[j])));
-            out.pieces.insert(out.pieces.end(), site.parts[j].pieces.begin(), site.parts[j].pieces.end());
+        const size_t P = site.parts.size();
+        for (size_t j = 0; j < site.plans.size(); ++j) {
+            const size_t band = j / P, part = j % P;
+            const bool banded = !site.bandDepths.empty();
+            if (banded && site.plans[j].slices.empty())
+                out.textures.push_back(nullptr);  // a band no blocker reaches: full light
+            else
+                out.textures.push_back(std::make_shared<const SoftShadowTexture>(
+                    computeSoftShadow(site.plans[j], site.parts[part].desc, banded ? site.bandTris[band] : site.tris,
+                                      site.partSettings[j])));
+            if (band == 0)
+                out.pieces.insert(out.pieces.end(), site.parts[part].pieces.begin(), site.parts[part].pieces.end());
         }
+        out.bandDepths = site.bandDepths;
+        out.bandOrigin = site.bandOrigin;
+        out.bandAxis = site.bandAxis;
+        out.bandAcross = site.bandAcross;
+        out.bandSpans = site.bandSpans;
     } catch (const std::domain_error&) {
         return Refusal::Invalid;
     }

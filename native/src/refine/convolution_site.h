@@ -53,6 +53,7 @@ private:
     Refusal selectSource(int r, int s, Site& site) const;  // test 2
     Refusal selectBlockers(Site& site) const;              // test 3
     Refusal planTextures(Site& site) const;                // test 4
+    Refusal planBands(Site& site) const;                   // test 4 for a receiver steep to its source
     Refusal withinTimeBudget(const Site& site) const;      // test 5
     Refusal computeTextures(Site& site, ConvolutionLink& out);
     bool planarCluster(int c) const { return planar_[size_t(c)]; }

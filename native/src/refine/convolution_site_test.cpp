@@ -7,6 +7,7 @@
 
 #include "convolution/cost_model.h"
 #include "convolution/soft_shadow.h"
+#include "geometry/form_factor.h"
 #include "testing/scenes.h"
 
 namespace penumbra {
@@ -228,6 +229,93 @@ TEST(ConvolutionSites, AReceiverIsNeverItsOwnSource) {
     EXPECT_FALSE(s.sites->tryLink(0, 0, l));
     EXPECT_FALSE(s.sites->tryLink(1, 1, l));
     EXPECT_EQ(s.count("convolution_tried"), 0u);  // refused before the blocker selection
+}
+
+// wall_links: polygon 0 a 4 x 2.8 m wall at x = -1 facing +x, reaching above the lamp (polygon 1, 0.5 m, 2.5 m up,
+// 1.6 m from the wall, facing down); the furniture in front of it is black.
+enum class Furniture { Shelf, ShelfOnTheWall, Cupboard };
+
+TestScene wallUnderLamp(Furniture f) {
+    TestScene t;
+    t.names = {"Wall", "Lamp", "Furniture"};
+    t.quad({-1, -2, 0}, {-1, 2, 0}, {-1, 2, 2.8}, {-1, -2, 2.8}, {0.7, 0.7, 0.7}, {}, 0, 0);
+    double s = 0.25;
+    t.quad({0.6 - s, -s, 2.5}, {0.6 - s, s, 2.5}, {0.6 + s, s, 2.5}, {0.6 + s, -s, 2.5}, {}, {10, 10, 10}, kLightOnly, 1);
+    switch (f) {
+    case Furniture::Shelf: t.box({-0.75, -0.6, 0.74}, {-0.15, 0.6, 0.75}, {}, {}, false, 2); break;
+    case Furniture::ShelfOnTheWall: t.box({-1.0, -0.6, 0.74}, {-0.6, 0.6, 0.75}, {}, {}, false, 2); break;
+    case Furniture::Cupboard: t.box({-0.7, -0.3, 0}, {-0.4, 0.3, 1.2}, {}, {}, false, 2); break;
+    }
+    return t;
+}
+
+Settings wallLinks(bool on) {
+    Settings s;
+    s.tMax = 1e6;  // what is tested is the site, not the FFT budget
+    s.wallLinks = on;
+    return s;
+}
+
+TEST(ConvolutionSites, AWallReachingAboveTheLampIsNotASiteWithoutWallLinks) {
+    Sites s(wallUnderLamp(Furniture::Shelf), wallLinks(false));
+    ConvolutionLink l;
+    EXPECT_FALSE(s.sites->tryLink(0, 1, l));
+    EXPECT_EQ(s.count("convolution_tried"), 0u);  // the lamp's plane cuts the wall's box
+}
+
+TEST(ConvolutionSites, AWallUnderAShelfTakesABandedLink) {
+    Sites s(wallUnderLamp(Furniture::Shelf), wallLinks(true));
+    ConvolutionLink l;
+    ASSERT_TRUE(s.sites->tryLink(0, 1, l));
+    EXPECT_EQ(s.refused(), 0u);
+    EXPECT_LE(l.error, Settings{}.eMax);
+    ASSERT_GE(l.bandDepths.size(), 3u);
+    const size_t bands = l.bandDepths.size() - 1;
+    ASSERT_EQ(l.textures.size() % bands, 0u);
+    // Depth runs down from the lamp's plane; the bands start at the shelf's top, 0.75 m up, and end at the floor.
+    EXPECT_NEAR(l.bandDepths.front(), 2.5 - 0.75, 1e-9);
+    EXPECT_NEAR(l.bandDepths.back(), 2.5, 1e-9);
+    const Scene& sc = s.h->scene();
+    const Vec3 n{1, 0, 0};
+    std::vector<double> f(l.pieces.size());
+    auto delivered = [&](const Vec3& y) {  // y in the caller's coordinates; the scene is recentred
+        convolutionFactors(sc, l, y - sc.offset, n, f.data());
+        double sum = 0;
+        for (double x : f) sum += x;
+        return sum;
+    };
+    auto unoccluded = [&](const Vec3& y) {
+        double sum = 0;
+        for (const SourcePiece& p : l.pieces) sum += pointToPolygonFormFactor(y - sc.offset, n, p.geom);
+        return sum;
+    };
+    // Above the lamp's plane: nothing; above the shelf: the whole lamp; below it a shadow.
+    EXPECT_EQ(delivered({-1, 0, 2.7}), 0.0);
+    const Vec3 high{-1, 0.3, 1.5};
+    EXPECT_GT(unoccluded(high), 0);
+    EXPECT_DOUBLE_EQ(delivered(high), unoccluded(high));
+    // At the shadow's height but along the wall beyond its hull (the shelf ends at y = 0.6): full light.
+    const Vec3 aside{-1, 1.95, 0.3};
+    EXPECT_DOUBLE_EQ(delivered(aside), unoccluded(aside));
+    double darkest = 1;
+    for (double z = 0.05; z < 0.74; z += 0.05) darkest = std::min(darkest, delivered({-1, 0, z}) / unoccluded({-1, 0, z}));
+    EXPECT_LT(darkest, 0.5);
+}
+
+TEST(ConvolutionSites, AShelfOnTheWallIsRefusedAsInvalid) {
+    // At its own height the shelf is within reach of every band: no band can leave it out, nor convolve it.
+    Sites s(wallUnderLamp(Furniture::ShelfOnTheWall), wallLinks(true));
+    ConvolutionLink l;
+    EXPECT_FALSE(s.sites->tryLink(0, 1, l));
+    EXPECT_EQ(s.count("convolution_refused/invalid"), 1u);
+}
+
+TEST(ConvolutionSites, ACupboardBeforeTheWallIsRefusedAsTooCoarse) {
+    // Its 1.2 m face toward the lamp spans every band's blockers in depth: E_rr over e_max with 32 bands.
+    Sites s(wallUnderLamp(Furniture::Cupboard), wallLinks(true));
+    ConvolutionLink l;
+    EXPECT_FALSE(s.sites->tryLink(0, 1, l));
+    EXPECT_EQ(s.count("convolution_refused/too_coarse"), 1u);
 }
 
 }  // namespace

@@ -45,9 +45,23 @@ void collectLeaves(const Hierarchy& h, int e, std::vector<int>& out) {
 void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y, const Vec3& n, double* out) {
     // Called per texel and per leaf sample: the visibility of each part goes in a per-thread buffer.
     thread_local std::vector<double> vis;
-    vis.resize(l.textures.size());
+    size_t parts = l.textures.size(), first = 0;
+    bool lit = false;  // above every blocker of a banded link: the whole source is seen
+    if (!l.bandDepths.empty()) {
+        const size_t bands = l.bandDepths.size() - 1;
+        parts /= bands;
+        const double z = dot(y - l.bandOrigin, l.bandAxis);
+        auto it = std::upper_bound(l.bandDepths.begin(), l.bandDepths.end(), z);
+        lit = it == l.bandDepths.begin();
+        const size_t band = std::min(bands - 1, size_t(std::max<ptrdiff_t>(0, it - l.bandDepths.begin() - 1)));
+        const double a = dot(y - l.bandOrigin, l.bandAcross);
+        lit = lit || a < l.bandSpans[band].first || a > l.bandSpans[band].second;
+        first = band * parts;
+    }
+    vis.resize(parts);
     for (size_t j = 0; j < vis.size(); ++j) {
-        float v = lookupVisibility(*l.textures[j], y);
+        const SoftShadowTexture* t = lit ? nullptr : l.textures[first + j].get();
+        float v = t ? lookupVisibility(*t, y) : 1.0f;
         vis[j] = std::isfinite(v) ? std::clamp(double(v), 0.0, 1.0) : 0.0;
     }
     for (size_t k = 0; k < l.pieces.size(); ++k) {

@@ -15,6 +15,7 @@
 // radiosity less that mean, plus rho * I(y) / pi evaluated at every point: ConvolutionField.
 #pragma once
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "convolution/soft_shadow.h"
@@ -34,8 +35,17 @@ struct ConvolutionLink {
     int source = -1;                   // node: a polygon's root element or a cluster of coplanar emitters
     std::vector<int> receiverPolygons; // faces lit through the link, ascending
     std::vector<int> sourcePolygons;   // emitting faces turned toward the receiver, ascending
-    std::vector<std::shared_ptr<const SoftShadowTexture>> textures;  // one per part of the source
+    std::vector<std::shared_ptr<const SoftShadowTexture>> textures;  // one per part of the source (per band)
     std::vector<SourcePiece> pieces;
+    // A receiver steep to its source (wall_links) is cut into bands of depth along the source's normal:
+    // band b holds depths [bandDepths[b], bandDepths[b + 1]) and textures[b * parts + part]; a null texture is
+    // full light. Points shallower than bandDepths[0] lie above every blocker and see all of the source.
+    // Empty bandDepths: one texture per part for the whole receiver.
+    std::vector<double> bandDepths;
+    Vec3 bandOrigin, bandAxis;  // depth = dot(y - bandOrigin, bandAxis)
+    // Per band, the range of dot(y - bandOrigin, bandAcross) a shadow can reach; outside it, full light.
+    Vec3 bandAcross;
+    std::vector<std::pair<double, double>> bandSpans;
     int blockerTriangles = 0;
     double error = 0;                  // E_rr, in texels of half the narrowest penumbra (what e_max bounds)
 };
