@@ -96,53 +96,6 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     return sum * (cy / (M_PI * r2));
 }
 
-bool costlyFlux(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
-    if (!isClusterNode(source)) {
-        const Element& e = h[size_t(source)];
-        double r2 = length2(y - e.center);
-        return n && r2 > 0 && r2 < kNearField2 * e.area;  // elementKernel's exact branch
-    }
-    const Cluster& c = h.clusters()[clusterIndex(source)];
-    double r2 = length2(y - c.center);
-    return r2 > 0 && c.radius > kFarField * std::sqrt(r2);  // fluxAt's face-by-face branch
-}
-
-size_t fluxKernels(const Hierarchy& h, int source, const Vec3& y, const Vec3* n, double* out) {
-    const Scene& sc = h.scene();
-    if (!isClusterNode(source)) {
-        const Element& e = h[size_t(source)];
-        *out = elementKernel(e, sc.polygons[e.polygon].normal, y, n);
-        return 1;
-    }
-    const ClusterTree& ct = h.clusters();
-    const Cluster& c = ct[clusterIndex(source)];
-    size_t count = 0;
-    for (int k = c.begin; k < c.end; ++k) {
-        int p = ct.polygons()[size_t(k)];
-        if (!bouncesLight(sc.polygons[size_t(p)])) continue;
-        out[count++] = elementKernel(h[size_t(p)], sc.polygons[size_t(p)].normal, y, n);
-    }
-    return count;
-}
-
-Rgb fluxFromKernels(const Hierarchy& h, int source, const double*& k) {
-    if (!isClusterNode(source)) return h[size_t(source)].B * *k++;
-    const Scene& sc = h.scene();
-    const ClusterTree& ct = h.clusters();
-    const Cluster& c = ct[clusterIndex(source)];
-    Rgb sum;
-    // The same faces in the same order as fluxAt, so the same sum.
-    for (int i = c.begin; i < c.end; ++i) {
-        int p = ct.polygons()[size_t(i)];
-        if (!bouncesLight(sc.polygons[size_t(p)])) continue;
-        double kernel = *k++;
-        const Element& e = h[size_t(p)];
-        if (maxComponent(e.B) <= 0) continue;
-        sum += e.B * kernel;
-    }
-    return sum;
-}
-
 double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
     Bounds sb = nodeBox(h, source);
     double dmin = boxDistance(rb, sb);

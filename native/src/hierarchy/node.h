@@ -20,16 +20,6 @@ uint64_t nodeKey(const Hierarchy& h, int node);
 // shares among its faces by their own cosines.
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n);
 
-// fluxAt in two halves, for a solver that evaluates the same (source, y, n) every sweep while only the
-// radiosities change. Where fluxAt is costly (costlyFlux: an element within a few of its widths of y,
-// whose exact form factor takes a dozen atan2, or a cluster nearer than its far field, summed face by
-// face), fluxKernels writes the geometry, one number per element or per face of the cluster that bounces
-// light, to `out` and returns how many; fluxFromKernels then gives fluxAt's value, to the last bit, from
-// them (advancing `k`) and the current radiosities.
-bool costlyFlux(const Hierarchy& h, int source, const Vec3& y, const Vec3* n);
-size_t fluxKernels(const Hierarchy& h, int source, const Vec3& y, const Vec3* n, double* out);
-Rgb fluxFromKernels(const Hierarchy& h, int source, const double*& k);
-
 // Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`, at
 // distance dmin or more: cosines are widened by the angular radius of the other end, distances
 // shrunk to dmin. Infinite when the boxes touch.

@@ -4,7 +4,6 @@
 #include <cmath>
 
 #include "hierarchy/node.h"
-#include "hierarchy/predicates.h"
 #include "util/parallel.h"
 
 namespace penumbra {
@@ -36,7 +35,6 @@ void Solver::gather(const std::vector<Link>& links) {
             if (i == 0 || links[i].receiver != links[i - 1].receiver) groupStart_.push_back(i);
         groupStart_.push_back(links.size());
         prepareClusters(links);
-        if (!kernelsValid_) prepareKernels(links);
     }
     for (size_t i = 0; i < h_.size(); ++i) h_[i].irradiance = Rgb{};
     h_.updateClusterFlux();
@@ -50,16 +48,12 @@ void Solver::gather(const std::vector<Link>& links) {
             Element& re = h_[r];
             const Vec3& n = sc.polygons[re.polygon].normal;
             Rgb sum;
-            const double* k = groupKernels_[g] < 0 ? nullptr : kernels_.data() + groupKernels_[g];
             for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
                 const Link& l = links[i];
-                if (isClusterNode(l.source)) {
-                    Rgb f = k && costlyFlux(h_, l.source, re.center, &n) ? fluxFromKernels(h_, l.source, k)
-                                                                          : fluxAt(h_, l.source, re.center, &n);
-                    sum += f * (unoccluded_ ? 1.0 : double(l.V));
-                } else {
+                if (isClusterNode(l.source))
+                    sum += fluxAt(h_, l.source, re.center, &n) * (unoccluded_ ? 1.0 : double(l.V));
+                else
                     sum += h_[l.source].B * double(unoccluded_ ? l.Fmean : l.F);
-                }
             }
             re.irradiance = sum;
         }
@@ -79,103 +73,21 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
             if (!poly.receives || h_.buried(int(p))) continue;
             Rgb sum;
             const Vec3& y = h_[p].center;
-            const double* k = faceKernels_[p] < 0 ? nullptr : kernels_.data() + faceKernels_[p];
             for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent) {
                 auto [lo, hi] = clusterLinks_[size_t(c)];
                 for (size_t i = lo; i < hi; ++i) {
-                    int s = links[i].source;
-                    bool cached = k && costlyFlux(h_, s, y, &poly.normal);
                     double v = links[i].V;
                     if (linkFaceV_[i]) v = (*linkFaceV_[i])[size_t(polyPos_[p] - ct[c].begin)];
-                    if (unoccluded_) {
+                    if (unoccluded_)
                         v = 1.0;
-                    } else if (v <= 0) {
-                        // A face that sees none of the source (many under a shared link).
-                        if (cached) k += isClusterNode(s) ? clusterBounce_[size_t(clusterIndex(s))] : 1;
-                        continue;
-                    }
-                    sum += (cached ? fluxFromKernels(h_, s, k) : fluxAt(h_, s, y, &poly.normal)) * v;
+                    else if (v <= 0)
+                        continue;  // a face that sees none of the source (many under a shared link)
+                    sum += fluxAt(h_, links[i].source, y, &poly.normal) * v;
                 }
             }
             down[p] = sum;
         }
     });
-}
-
-size_t Solver::costlyCount(int source, const Vec3& y, const Vec3* n) const {
-    if (!costlyFlux(h_, source, y, n)) return 0;
-    return isClusterNode(source) ? size_t(clusterBounce_[size_t(clusterIndex(source))]) : 1;
-}
-
-void Solver::prepareKernels(const std::vector<Link>& links) {
-    // The sweeps' costly part is the same geometry every time: near clusters summed face by face and
-    // exact form factors of near elements (the 10k office with far_field 0.5: 35 % of the CPU in
-    // distributeClusters). Within the budget each site's numbers are computed once here.
-    constexpr size_t kBudgetBytes = size_t(256) << 20;
-    const ClusterTree& ct = h_.clusters();
-    const Scene& sc = h_.scene();
-    if (clusterBounce_.size() != ct.size()) {
-        clusterBounce_.assign(ct.size(), 0);
-        for (size_t c = 0; c < ct.size(); ++c)
-            for (int k = ct[int(c)].begin; k < ct[int(c)].end; ++k)
-                clusterBounce_[c] += bouncesLight(sc.polygons[size_t(ct.polygons()[size_t(k)])]);
-    }
-    size_t groups = groupStart_.size() - 1, faces = ct.empty() ? 0 : h_.numRoots();
-    int threads = resolveThreads(settings_.threads);
-    // Sites in order, element receivers' runs first: how many numbers each needs.
-    std::vector<int64_t> count(groups + faces, 0);
-    parallelFor(groups + faces, threads, 256, [&](size_t b, size_t e, int) {
-        for (size_t site = b; site < e; ++site) {
-            size_t n = 0;
-            if (site < groups) {
-                int r = links[groupStart_[site]].receiver;
-                if (isClusterNode(r)) continue;
-                const Vec3& nr = sc.polygons[h_[r].polygon].normal;
-                for (size_t i = groupStart_[site]; i < groupStart_[site + 1]; ++i)
-                    if (isClusterNode(links[i].source)) n += costlyCount(links[i].source, h_[r].center, &nr);
-            } else {
-                size_t p = site - groups;
-                const ScenePolygon& poly = sc.polygons[p];
-                if (!poly.receives || h_.buried(int(p))) continue;
-                for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent)
-                    for (size_t i = clusterLinks_[size_t(c)].first; i < clusterLinks_[size_t(c)].second; ++i)
-                        n += costlyCount(links[i].source, h_[p].center, &poly.normal);
-            }
-            count[site] = int64_t(n);
-        }
-    });
-    std::vector<int64_t> start(groups + faces, -1);
-    size_t total = 0;
-    for (size_t site = 0; site < count.size(); ++site) {
-        if (count[site] == 0 || (total + size_t(count[site])) * sizeof(double) > kBudgetBytes) continue;
-        start[site] = int64_t(total);
-        total += size_t(count[site]);
-    }
-    kernels_.assign(total, 0.0);
-    parallelFor(groups + faces, threads, 256, [&](size_t b, size_t e, int) {
-        for (size_t site = b; site < e; ++site) {
-            if (start[site] < 0) continue;
-            double* out = kernels_.data() + start[site];
-            if (site < groups) {
-                int r = links[groupStart_[site]].receiver;
-                const Vec3& nr = sc.polygons[h_[r].polygon].normal;
-                for (size_t i = groupStart_[site]; i < groupStart_[site + 1]; ++i)
-                    if (isClusterNode(links[i].source) && costlyFlux(h_, links[i].source, h_[r].center, &nr))
-                        out += fluxKernels(h_, links[i].source, h_[r].center, &nr, out);
-            } else {
-                size_t p = site - groups;
-                const Vec3& np = sc.polygons[p].normal;
-                for (int c = ct.owner(int(p)); c >= 0; c = ct[c].parent)
-                    for (size_t i = clusterLinks_[size_t(c)].first; i < clusterLinks_[size_t(c)].second; ++i)
-                        if (costlyFlux(h_, links[i].source, h_[p].center, &np))
-                            out += fluxKernels(h_, links[i].source, h_[p].center, &np, out);
-            }
-        }
-    });
-    groupKernels_.assign(start.begin(), start.begin() + int64_t(groups));
-    faceKernels_.assign(start.begin() + int64_t(groups), start.end());
-    if (faces == 0) faceKernels_.assign(h_.numRoots(), -1);
-    kernelsValid_ = true;
 }
 
 Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected) {
@@ -201,7 +113,6 @@ Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected)
 
 void Solver::directIrradiance(const std::vector<Link>& links, std::vector<Rgb>& shadowed,
                               std::vector<Rgb>& unoccluded) {
-    kernelsValid_ = false;  // the links need not be the last solve's
     const Scene& sc = h_.scene();
     std::vector<Rgb> saved(h_.size());
     for (size_t i = 0; i < h_.size(); ++i) {
@@ -262,7 +173,6 @@ double Solver::sweep(const std::vector<Link>& links) {
 SolveResult Solver::solve(const std::vector<Link>& links, Progress* progress) {
     SolveResult res;
     groupStart_.clear();  // the links may have been re-refined since the last solve
-    kernelsValid_ = false;
     double prev = -1;
     for (int it = 1; it <= settings_.maxIterations; ++it) {
         double change = sweep(links);

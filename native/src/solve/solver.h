@@ -69,16 +69,6 @@ private:
     const ClusterFaceVisibility* faceVis_ = nullptr;
     std::vector<const std::vector<float>*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
     std::vector<int> polyPos_;                            // polygon -> its index in the cluster tree's order
-
-    // The costly geometry of the links' transfers (costlyFlux), computed once per set of links instead
-    // of in every sweep: per element receiver's run of links and per polygon below receiving clusters,
-    // where its numbers begin in kernels_ (-1: evaluated as it goes, past the memory budget).
-    void prepareKernels(const std::vector<Link>& links);
-    size_t costlyCount(int source, const Vec3& y, const Vec3* n) const;
-    std::vector<int64_t> groupKernels_, faceKernels_;
-    std::vector<double> kernels_;
-    std::vector<int> clusterBounce_;  // per cluster: its faces that bounce light
-    bool kernelsValid_ = false;
 };
 
 }  // namespace penumbra
