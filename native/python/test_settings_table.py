@@ -130,3 +130,10 @@ def test_cli_visibility_rays_stops_where_the_solver_does(capsys):
     assert e.value.code == 2
     assert "--visibility-rays: must be in [1, 256], got 257" in capsys.readouterr().err
 
+
+
+def test_help_texts_survive_argparse():
+    """The CLI hands each help text to argparse, which formats it with %: a bare % (as in "18 % less") makes
+    `--help` and every CLI error raise TypeError instead of printing."""
+    for s in table.SETTINGS:
+        assert "%" not in s.help.replace("%%", ""), f"{s.name}: write % as %% or in words in its help"
