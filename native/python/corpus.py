@@ -245,7 +245,7 @@ def albedo_zero():
 def albedo_0999():
     b = cornellish()
     b.refl = [[0.999] * 3 if r[0] > 0 else r for r in b.refl]
-    # Jacobi needs ~16000 sweeps at this albedo: the solve stops at max_iterations and says so.
+    # Plain Jacobi needed ~16000 sweeps at this albedo; mixed sweeps converge in ~30, within max_iterations.
     return Case(b.arrays(), settings={"max_iterations": 100, "epsilon": 0.002, "min_size": 0.05})
 
 

@@ -235,8 +235,10 @@ def test_furnace_at_albedo_099_converges_to_e_over_one_minus_rho():
     print(f"furnace rho=0.99: {rep['iterations']} iterations over {rep['refine_passes']} passes, "
           f"residual {rep['residual']:.2e}, {rep['elements']} elements")
     assert rep["converged"]
-    # Jacobi contracts by rho per sweep: reaching 1e-7 from 1 takes at least log(1e-7)/log(0.99) sweeps.
-    assert rep["iterations"] >= math.log(1e-7) / math.log(rho) * 0.5
+    # Plain Jacobi contracts by rho per sweep, log(1e-7)/log(0.99) = 1604 sweeps from 1 to 1e-7; mixing each
+    # sweep with the last few (Anderson's method, solver.cpp) must get there in a small fraction of that, and
+    # the stopping rule still measures the error left by Jacobi's contraction, so the answer below holds.
+    assert rep["iterations"] < 0.05 * math.log(1e-7) / math.log(rho)
     pts, nrm = corpus.face_samples(args)
     got = sol.radiance(pts, nrm)
     expect = emit * rho / (1 - rho) / math.pi  # reflected part of B = E / (1 - rho)
@@ -260,9 +262,10 @@ def test_radiance_is_linear_in_emission(power):
 
 def test_albedo_0999_without_convergence_reports_it():
     args = CASES["albedo_0999"]().args
-    sol = _native.solve(*args, settings={"max_iterations": 50, "refine_passes": 1})
+    # One pass of this box takes 8 mixed sweeps to the default tolerance (Jacobi alone ~119): stop it at 3.
+    sol = _native.solve(*args, settings={"max_iterations": 3, "refine_passes": 1})
     rep = sol.report
-    assert not rep["converged"] and rep["iterations"] == 50
+    assert not rep["converged"] and rep["iterations"] == 3
     assert any("max_iterations" in w for w in rep["warnings"])
     check_finite_bake(sol, args)
 

@@ -1,7 +1,9 @@
-// Gather and push/pull, iterated to convergence (Jacobi sweeps over the link hierarchy). The links of
+// Gather and push/pull, iterated to convergence (Jacobi sweeps over the link hierarchy, each new
+// iterate mixed with the last few by Anderson's method). The links of
 // a receiving cluster are gathered by every polygon below it, each at its own centre and normal,
 // before the polygons' push/pull.
 #pragma once
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -38,6 +40,10 @@ public:
     // Per element: irradiance from the scene's lamps and world (LightSet::leafIrradiance), reflected by
     // the leaves like gathered light; null or empty without lights. Must outlive the solve.
     void setLightIrradiance(const std::vector<Rgb>* e) { lightE_ = e && !e->empty() ? e : nullptr; }
+    // How many past steps each new iterate is mixed with (Anderson's method), at most kMaxMixing; 0
+    // gives plain Jacobi sweeps, which the tests hold the mixed solve against.
+    static constexpr int kMaxMixing = 5;
+    void setMixing(int depth) { mixing_ = std::clamp(depth, 0, kMaxMixing); }
 
     // The irradiance each element's links bring straight from the emitters (a gather with every
     // radiosity set to its emission, pushed down to the leaves), as linked (`shadowed`) and with every
@@ -62,6 +68,10 @@ private:
     std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
     std::vector<std::pair<size_t, size_t>> clusterLinks_;  // link range of each receiving cluster
     double lastReflected_ = 0;
+    // Largest ratio of successive changes seen over plain sweeps: Jacobi's contraction, by which the
+    // last change predicts the error left. Kept across solves (re-refinement barely changes it).
+    double contraction_ = -1;
+    int mixing_ = kMaxMixing;
     bool unoccluded_ = false;  // gather with every link's visibility taken as 1
     const std::vector<ConvolutionLink>* convLinks_ = nullptr;
     const CompleteTextures* textures_ = nullptr;

@@ -6,6 +6,7 @@
 
 #include "geometry/form_factor.h"
 #include "penumbra.h"
+#include "refine/refiner.h"
 #include "testing/scenes.h"
 
 namespace penumbra {
@@ -227,6 +228,69 @@ TEST(Solve, ThreadCountDoesNotChangeTheResult) {
     ASSERT_EQ(a->links().size(), b->links().size());
     for (size_t i = 0; i < a->hierarchy().size(); ++i)
         for (int c = 0; c < 3; ++c) ASSERT_EQ(a->hierarchy()[i].B[c], b->hierarchy()[i].B[c]);
+}
+
+// The mixed solve (Anderson's method over the last sweeps) must reach the fixed point plain Jacobi sweeps
+// reach, on the same links, in fewer sweeps: in litRoom, whose floor and ceiling pass light back and forth
+// (Jacobi's changes swing between two ratios), and in a closed box of high, coloured albedo (0.95 takes
+// Jacobi hundreds of sweeps; Furnace.* and test_corpus.py check such boxes against B = E / (1 - rho)).
+// At the default tolerance the mixed result is as close to the converged one as the tolerance says.
+struct LinkedScene : testing::SolverParts {
+    std::vector<Link> links;
+    std::vector<Rgb> start;
+    LinkedScene(const testing::TestScene& t, const Settings& s) : SolverParts(t, s) {
+        h->updateClusterFlux();
+        Refiner refiner(*h, *rays, s, counters);
+        links = refiner.linkAll(nullptr);
+        std::stable_sort(links.begin(), links.end(),
+                         [](const Link& a, const Link& b) { return a.receiver < b.receiver; });
+        for (size_t i = 0; i < h->size(); ++i) start.push_back(scene.polygons[(*h)[i].polygon].emission);
+    }
+    // Radiosity of every element after a solve from the emission with `mixing` past steps mixed in.
+    std::vector<Rgb> solveWith(int mixing, double tolerance, int& sweeps) {
+        for (size_t i = 0; i < h->size(); ++i) (*h)[i].B = start[i];
+        h->updateClusterFlux();
+        Settings s;
+        s.tolerance = tolerance;
+        s.maxIterations = 100000;
+        Solver solver(*h, s);
+        solver.setMixing(mixing);
+        SolveResult r = solver.solve(links, nullptr);
+        EXPECT_TRUE(r.converged);
+        sweeps = r.iterations;
+        std::vector<Rgb> B;
+        for (size_t i = 0; i < h->size(); ++i) B.push_back((*h)[i].B);
+        return B;
+    }
+};
+
+double worstRelative(const std::vector<Rgb>& a, const std::vector<Rgb>& b) {
+    double peak = 0, worst = 0;
+    for (size_t i = 0; i < a.size(); ++i)
+        for (int c = 0; c < 3; ++c) {
+            peak = std::max(peak, std::fabs(b[i][c]));
+            worst = std::max(worst, std::fabs(a[i][c] - b[i][c]));
+        }
+    return worst / peak;
+}
+
+TEST(Solve, MixedSweepsReachJacobisFixedPointInFewerSweeps) {
+    Settings s;
+    s.epsilon = 0.002;
+    s.threads = 2;
+    auto furnace = testing::furnaceBox(2.0, 3, {0.95, 0.6, 0.2}, {1.0, 1.0, 1.0});
+    for (const testing::TestScene& t : {testing::litRoom(), furnace}) {
+        LinkedScene ls(t, s);
+        ASSERT_GT(ls.links.size(), 10u);
+        int plainSweeps = 0, mixedSweeps = 0, looseSweeps = 0;
+        std::vector<Rgb> plain = ls.solveWith(0, 1e-10, plainSweeps);
+        std::vector<Rgb> mixed = ls.solveWith(Solver::kMaxMixing, 1e-10, mixedSweeps);
+        std::vector<Rgb> loose = ls.solveWith(Solver::kMaxMixing, 1e-4, looseSweeps);
+        std::printf("plain %d sweeps, mixed %d (to 1e-10), %d (to 1e-4)\n", plainSweeps, mixedSweeps, looseSweeps);
+        EXPECT_LT(worstRelative(mixed, plain), 1e-8);
+        EXPECT_LT(worstRelative(loose, plain), 1e-4);
+        EXPECT_LT(2 * mixedSweeps, plainSweeps);
+    }
 }
 
 class CancelAt : public Progress {
