@@ -54,6 +54,20 @@ Hierarchy::Hierarchy(const Scene& scene, size_t maxElements, bool clustering, bo
     for (size_t i = 0; i < numRoots_; ++i) initRoot((*this)[first + i], scene.polygons[i], int(i));
 }
 
+void Hierarchy::updateClusterFlux() {
+    clusters_.updateFlux(scene_, [&](int p) {
+        return bouncesLight(scene_.polygons[size_t(p)]) ? (*this)[size_t(p)].B : Rgb{};
+    });
+    const std::vector<int>& order = clusters_.polygons();
+    faceLight_.resize(order.size());
+    for (size_t k = 0; k < order.size(); ++k) {
+        int p = order[k];
+        const Element& e = (*this)[size_t(p)];
+        const ScenePolygon& sp = scene_.polygons[size_t(p)];
+        faceLight_[k] = {e.center, sp.normal, e.B, e.area, p, maxComponent(e.B) > 0 && bouncesLight(sp)};
+    }
+}
+
 void Hierarchy::initRoot(Element& e, const ScenePolygon& p, int polygon) {
     e.n = uint8_t(p.geom.n);
     for (int k = 0; k < e.n; ++k) e.v[k] = p.geom.v[k];

@@ -1,6 +1,7 @@
 #include "hierarchy/node.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 
 #include "geometry/form_factor.h"
@@ -76,12 +77,26 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     if (c.radius > kFarField * r) {  // not in its far field (predicates.h)
         // Near a cluster its faces see y from different directions, and a face that the centre's
         // direction puts at grazing incidence may still light y: face by face, each from its centre.
+        // The faces are read from their compact copy (Hierarchy::faceLight); only the exact form
+        // factor near a face needs its element. Same arithmetic as elementKernel, term for term.
+        const std::vector<Hierarchy::FaceLight>& faces = h.faceLight();
+        assert(faces.size() == ct.polygons().size());  // updateClusterFlux has run
         Rgb sum;
         for (int k = c.begin; k < c.end; ++k) {
-            int p = ct.polygons()[size_t(k)];
-            const Element& e = h[size_t(p)];
-            if (maxComponent(e.B) <= 0 || !bouncesLight(sc.polygons[size_t(p)])) continue;
-            sum += e.B * elementKernel(e, sc.polygons[size_t(p)].normal, y, n);
+            const Hierarchy::FaceLight& f = faces[size_t(k)];
+            if (!f.lit) continue;
+            Vec3 d = y - f.center;
+            double r2 = length2(d);
+            if (r2 <= 0) continue;
+            if (n && r2 < kNearField2 * f.area) {
+                sum += f.B * elementKernel(h[size_t(f.polygon)], f.normal, y, n);
+                continue;
+            }
+            double r = std::sqrt(r2);
+            double cj = dot(f.normal, d) / r;
+            double cy = n ? -dot(*n, d) / r : 1.0;
+            if (cj <= 0 || cy <= 0) continue;
+            sum += f.B * (f.area * cj * cy / (M_PI * r2 + f.area));
         }
         return sum;
     }
