@@ -64,12 +64,13 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        band (a shelf before a wall: 0.64 % worst against the exact light). Off by default: it moves results  \
        wherever it links (classroom walls and chair backs) and was not scored against Cycles. */             \
     X(bool, wallLinks, "wall_links", false, '[', 0, 1, ']')                                                \
-    /* A cluster source is linked whole only when its radius is at most far_field of its distance to the    \
-       receiver; nearer, it is opened (its light is evaluated face by face there, node.cpp, but with one     \
-       visible share). 0.5 links less (the 10k office at epsilon 0.002: 2.37M -> 0.98M links) but every      \
-       sweep then sums its near clusters face by face: 18 % less CPU at 5k polygons, 36 % more at 50k, over   \
-       2.5 times more at 100k; and near configurations lose accuracy (an open safe's inside 5.6 % of the      \
-       peak off the face-by-face solve, 2.5 % at 0.2). docs/scaling.md. */                                  \
+    /* A cluster source is linked whole only when its radius is at most far_field of its distance to       \
+       the receiver; nearer, it is opened (its light is evaluated face by face there, node.cpp, but        \
+       with one visible share). 0.5 links less (the 10k office at epsilon 0.002: 2.37M -> 0.98M links)     \
+       and, since the sweeps are mixed and read near clusters' faces compactly (stop 26), takes 40 %       \
+       less CPU at 50k in half the memory; but near configurations lose accuracy (an open safe's inside    \
+       5.6 % of the peak off the face-by-face solve, 2.5 % at 0.2), so it is not the default.              \
+       docs/scaling.md. */                                                                                 \
     X(double, farField, "far_field", 0.2, '(', 0, 1, ']')                                                  \
     /* Final gather: the emitters' light is evaluated exactly at every bake point (form factor times         \
        visibility) instead of read from the elements; the hierarchy carries the reflected remainder. */     \
