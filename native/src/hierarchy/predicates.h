@@ -21,10 +21,10 @@ inline bool sendsLight(const ScenePolygon& p) { return emits(p) || (maxComponent
 
 // A cluster is in its far field when its radius is at most kFarField of the distance. There the
 // centre's direction stands for every face's to within about 12 degrees, and its light is evaluated
-// by normal class from the centre (node.cpp's fluxAt); nearer, face by face. Whether a cluster
-// source is linked whole is Settings::farField's (when this constant decided it too, 0.3 and 0.4
-// measured 1.74 % and 2.08 % against Cycles on the Cornell box, 0.2 1.65 %; visibility was then
-// sampled by area).
+// by normal class from the centre (node.cpp's fluxAt); nearer, its own faces one by one and its
+// child clusters by the same rule. Whether a cluster source is linked whole is Settings::farField's
+// (when this constant decided it too, 0.3 and 0.4 measured 1.74 % and 2.08 % against Cycles on the
+// Cornell box, 0.2 1.65 %; visibility was then sampled by area).
 inline constexpr double kFarField = 0.2;
 
 // How far a point handed in may lie off its own plane through float32 rounding alone: a few ulps of
