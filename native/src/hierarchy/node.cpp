@@ -16,21 +16,31 @@ namespace {
 // largest at grazing incidence, where little light arrives.
 constexpr double kNearField2 = 16.0;  // (r / sqrt(A))^2 below which the exact form factor is used
 
-// Irradiance at (y, n) per unit radiosity of element e, lying on a plane with normal en.
-double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n) {
-    Vec3 d = y - e.center;
+// Irradiance at (y, n) per unit radiosity of a face of `area` centred at c, lying on a plane with
+// normal en: the disc estimate, or within the near field exact() (the face's exact form factor).
+template <class Exact>
+double faceKernel(const Vec3& c, const Vec3& en, double area, const Vec3& y, const Vec3* n, Exact&& exact) {
+    Vec3 d = y - c;
     double r2 = length2(d);
     if (r2 <= 0) return 0;
-    if (n && r2 < kNearField2 * e.area) {
-        double h = dot(en, y - e.v[0]);  // y must lie in front of e's plane (e sends one way)
-        if (h <= 0) return 0;
-        return pointToPolygonFormFactor(y, *n, e.polygonShape());
-    }
+    if (n && r2 < kNearField2 * area) return exact();
     double r = std::sqrt(r2);
     double cj = dot(en, d) / r;
     double cy = n ? -dot(*n, d) / r : 1.0;
     if (cj <= 0 || cy <= 0) return 0;
-    return e.area * cj * cy / (M_PI * r2 + e.area);
+    return area * cj * cy / (M_PI * r2 + area);
+}
+
+// Element e's exact form factor from (y, n), e lying on a plane with normal en.
+double exactKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3& n) {
+    double h = dot(en, y - e.v[0]);  // y must lie in front of e's plane (e sends one way)
+    if (h <= 0) return 0.0;
+    return pointToPolygonFormFactor(y, n, e.polygonShape());
+}
+
+// Irradiance at (y, n) per unit radiosity of element e, lying on a plane with normal en.
+double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n) {
+    return faceKernel(e.center, en, e.area, y, n, [&] { return exactKernel(e, en, y, *n); });
 }
 
 double boxDistance(const Bounds& a, const Bounds& b) {
@@ -67,25 +77,15 @@ namespace {
 // The light of faces [begin, end) of the cluster tree's order at (y, n), face by face.
 Rgb facesFluxAt(const Hierarchy& h, int begin, int end, const Vec3& y, const Vec3* n) {
     // The faces are read from their compact copy (Hierarchy::faceLight); only the exact form factor
-    // near a face needs its element. Same arithmetic as elementKernel, term for term.
+    // near a face needs its element.
     const std::vector<Hierarchy::FaceLight>& faces = h.faceLight();
     assert(faces.size() == h.clusters().polygons().size());  // updateClusterFlux has run
     Rgb sum;
     for (int k = begin; k < end; ++k) {
         const Hierarchy::FaceLight& f = faces[size_t(k)];
         if (!f.lit) continue;
-        Vec3 d = y - f.center;
-        double r2 = length2(d);
-        if (r2 <= 0) continue;
-        if (n && r2 < kNearField2 * f.area) {
-            sum += f.B * elementKernel(h[size_t(f.polygon)], f.normal, y, n);
-            continue;
-        }
-        double r = std::sqrt(r2);
-        double cj = dot(f.normal, d) / r;
-        double cy = n ? -dot(*n, d) / r : 1.0;
-        if (cj <= 0 || cy <= 0) continue;
-        sum += f.B * (f.area * cj * cy / (M_PI * r2 + f.area));
+        sum += f.B * faceKernel(f.center, f.normal, f.area, y, n,
+                                [&] { return exactKernel(h[size_t(f.polygon)], f.normal, y, *n); });
     }
     return sum;
 }
