@@ -148,6 +148,10 @@ SETTINGS = (
             "horizontal bands below the lamp. Off by default: textures are made only where the blockers are flat "
             "along the lamp's axis (shelves, table tops); furniture with tall faces is left to the ordinary "
             "refinement", group="convolution"),
+    Setting("indirect_sources", bool, False, None, "Bounced Light Shadow Textures",
+            "Let a brightly lit surface (a ceiling over an uplight, a sunlit wall) cast its bounced light through "
+            "blockers as shadow textures too, weighted by its own light and shadows. Off by default: not yet "
+            "compared with Cycles on furnished rooms", group="convolution"),
     Setting("far_field", float, 0.2, ("(", 0.0, 1.0, "]"), "Cluster Far Field",
             "A group of objects sends its bounced light over one link once it is farther than its own radius "
             "divided by this. 0.5 makes fewer links, uses less memory and is faster (on a 50,000-polygon office "

@@ -164,6 +164,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         bool changed = false;
         h.updateClusterFlux();
         h.updateRadiosityDeviation();
+        refiner.setSolvedTextures(conv, textures);
         links = refiner.rerefine(links, progress, changed);
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();

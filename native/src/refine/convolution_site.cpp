@@ -112,8 +112,9 @@ struct SourcePart {
     std::vector<SourcePiece> pieces;
 };
 
+
 SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const SourceFrame& f, double s0, double s1,
-                      double t0, double t1, int part) {
+                      double t0, double t1, int part, const SourceRadiosity& radiosity) {
     SourcePart out;
     Vec3 corners[4] = {f.at(s0, t0), f.at(s1, t0), f.at(s1, t1), f.at(s0, t1)};
     double rectArea = (s1 - s0) * (t1 - t0), covered = 0;
@@ -134,12 +135,16 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
         out.pieces.push_back({piece, int(fi), part});
     }
     out.desc.polygon.assign(corners, corners + 4);
+    // A reflector's light varies over it with its own shadows and falloff: always an image (the paper's
+    // source "rendered with all its radiosity textures", which keeps their correlation with visibility).
+    if (radiosity) uniform = false;
     // The rectangle emits evenly: no image. Faces covering more than it overlap (a lamp doubled in place),
     // and the image then adds up their emission where they do; tiles meeting edge to edge may cover it a few
     // float32 roundings more and still need none.
     if (uniform && covered >= rectArea * (1 - 1e-9) && covered <= rectArea * (1 + 1e-4)) return out;
     // The image weights the part by emission; V is the emission-weighted visible fraction.
     EmissionImage& img = out.desc.emission;
+    std::vector<double> pieceSum(out.pieces.size(), 0.0), pieceCount(out.pieces.size(), 0.0);
     img.width = img.height = kEmissionImage;
     img.texels.assign(size_t(kEmissionImage) * kEmissionImage, 0.0f);
     const int ss = 2;
@@ -152,11 +157,24 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
                                   t0 + (t1 - t0) * (row + (a + 0.5) / ss) / kEmissionImage);
                     for (const SourcePiece& pc : out.pieces) {
                         const ScenePolygon& face = sc.polygons[size_t(faces[size_t(pc.face)])];
-                        if (insideConvex(pc.geom, face.normal, p)) sum += maxComponent(face.emission);
+                        if (!insideConvex(pc.geom, face.normal, p)) continue;
+                        double b = radiosity ? radiosity.at(faces[size_t(pc.face)], p) : maxComponent(face.emission);
+                        sum += b;
+                        if (radiosity) {
+                            size_t k = size_t(&pc - out.pieces.data());
+                            pieceSum[k] += b;
+                            pieceCount[k] += 1;
+                        }
                     }
                 }
             img.texels[size_t(row) * kEmissionImage + size_t(col)] = float(sum / (ss * ss));
         }
+    // Each piece's share of its face's light: the gather multiplies the face's mean radiosity by it, so
+    // a part over the bright middle of a lit ceiling sends more than one over its dim edge.
+    for (size_t k = 0; radiosity && k < out.pieces.size(); ++k) {
+        double mean = radiosity.mean(faces[size_t(out.pieces[k].face)]);
+        if (pieceCount[k] > 0 && mean > 0) out.pieces[k].weight = pieceSum[k] / pieceCount[k] / mean;
+    }
     return out;
 }
 
@@ -171,25 +189,25 @@ ConvolutionSites::ConvolutionSites(const Hierarchy& h, const RayCaster& rays, co
     planeTol_ = 1e-6 * sc.diagonal + float32Rounding(sc);
     const ClusterTree& ct = h.clusters();
     planar_.assign(ct.size(), 0);
-    hasEmitter_.assign(ct.size(), 0);
-    emitterGroup_.assign(ct.size(), 0);
+    hasSource_.assign(ct.size(), 0);
+    sourceGroup_.assign(ct.size(), 0);
     for (size_t c = 0; c < ct.size(); ++c) {
         const Cluster& cl = ct[int(c)];
         const ScenePolygon& first = sc.polygons[size_t(ct.polygons()[size_t(cl.begin)])];
-        bool planar = true, group = true, emitter = false;
+        bool planar = true, group = true, source = false;
         const ScenePolygon* firstSender = nullptr;
         for (int k = cl.begin; k < cl.end; ++k) {
             const ScenePolygon& p = sc.polygons[size_t(ct.polygons()[size_t(k)])];
             planar = planar && samePlane(first, p, planeTol_);
-            emitter = emitter || emits(p);
+            source = source || sourceFace(p);
             if (!sendsLight(p)) continue;
-            if (!emits(p)) group = false;
+            if (!sourceFace(p)) group = false;
             if (!firstSender) firstSender = &p;
             else group = group && samePlane(*firstSender, p, planeTol_);
         }
         planar_[c] = planar;
-        hasEmitter_[c] = emitter;
-        emitterGroup_[c] = group && emitter;
+        hasSource_[c] = source;
+        sourceGroup_[c] = group && source;
     }
 }
 
@@ -209,9 +227,55 @@ bool ConvolutionSites::receiverCandidate(int r) const {
     return length(b.diagonal()) >= settings_.aMin * sc.diagonal;
 }
 
-bool ConvolutionSites::sourceHasEmitters(int s) const {
-    if (isClusterNode(s)) return hasEmitter_[size_t(clusterIndex(s))];
-    return size_t(s) < h_.numRoots() && emits(h_.scene().polygons[size_t(s)]);
+bool ConvolutionSites::sourceFace(const ScenePolygon& p) const {
+    return settings_.indirectSources ? sendsLight(p) : emits(p);
+}
+
+bool ConvolutionSites::sourceCandidate(int s) const {
+    if (isClusterNode(s)) return hasSource_[size_t(clusterIndex(s))];
+    return size_t(s) < h_.numRoots() && sourceFace(h_.scene().polygons[size_t(s)]);
+}
+
+void ConvolutionSites::beginPass(size_t settled, const std::vector<ConvolutionLink>& conv, std::vector<Rgb> reflected) {
+    settled_ = settled;
+    field_ = conv.empty() ? ConvolutionField{} : ConvolutionField(h_, conv);
+    reflected_ = std::move(reflected);
+}
+
+SourceRadiosity ConvolutionSites::sourceRadiosity(bool reflects) const {
+    if (!reflects) return {};
+    return {[this](int polygon, const Vec3& p) { return radiosityAt(polygon, p); },
+            [this](int polygon) { return maxComponent(h_[size_t(polygon)].B); }};
+}
+
+double ConvolutionSites::radiosityAt(int polygon, const Vec3& p) const {
+    const ScenePolygon& sp = h_.scene().polygons[size_t(polygon)];
+    // Down the quadtree to the settled leaf holding p (the child p lies deepest inside, so a point on
+    // a shared edge still picks one). Elements split during this pass carry their parent's radiosity.
+    int e = polygon;
+    for (int fc = h_.firstChild(e); fc >= 0 && size_t(fc) < settled_; fc = h_.firstChild(e)) {
+        double bestInside = -HUGE_VAL;
+        for (int k = 0; k < h_[size_t(e)].numChildren; ++k) {
+            const Element& c = h_[size_t(fc + k)];
+            double inside = HUGE_VAL;
+            for (int i = 0; i < c.n; ++i) {
+                Vec3 edge = c.v[size_t((i + 1) % c.n)] - c.v[size_t(i)];
+                double len = length(edge);
+                if (len > 0) inside = std::min(inside, dot(cross(sp.normal, edge), p - c.v[size_t(i)]) / len);
+            }
+            if (inside > bestInside) {
+                bestInside = inside;
+                e = fc + k;
+            }
+        }
+    }
+    Rgb B = h_[size_t(e)].B;
+    // A face lit through convolution links holds only their mean over each leaf; the texture's detail is
+    // the display's (leaf radiosity less that mean, plus the links' light at p).
+    int group = 0;
+    Rgb detail = field_.empty() ? Rgb{} : field_.radiance(p, sp.normal, &group) * M_PI;
+    if (group != 0 && size_t(e) < reflected_.size()) B = B - reflected_[size_t(e)] + detail;
+    return std::max(0.0, maxComponent(B));
 }
 
 void ConvolutionSites::nodePolygons(int node, std::vector<int>& out) const {
@@ -237,15 +301,15 @@ bool ConvolutionSites::linkPossibleBelow(int r, int s, const std::function<bool(
     while (!stack.empty()) {
         int n = stack.back();
         stack.pop_back();
-        if (!isClusterNode(n) || emitterGroup_[size_t(clusterIndex(n))]) {
-            if (!sourceHasEmitters(n) || !significant(n)) continue;
+        if (!isClusterNode(n) || sourceGroup_[size_t(clusterIndex(n))]) {
+            if (!sourceCandidate(n) || !significant(n)) continue;
             Refusal why = evaluate(r, n, nullptr);
             if (why == Refusal::None) return true;
             if (why != Refusal::TooWide || !isClusterNode(n)) continue;  // lamps too far apart: try each
         }
         const ClusterTree& ct = h_.clusters();
         const Cluster& c = ct[clusterIndex(n)];
-        if (!hasEmitter_[size_t(clusterIndex(n))]) continue;
+        if (!hasSource_[size_t(clusterIndex(n))]) continue;
         for (int k = 0; k < c.numChildren; ++k) stack.push_back(clusterNode(c.firstChild + k));
         for (int k = c.begin; k < c.ownEnd; ++k) stack.push_back(ct.polygons()[size_t(k)]);
     }
@@ -257,6 +321,7 @@ struct ConvolutionSites::Site {
     int r = -1, s = -1;
     std::vector<int> rpolys;     // the receiver's polygons, sorted
     std::vector<int> faces;      // the source: the sending faces of s turned toward the receiver
+    bool reflects = false;       // some of them do not emit (indirect_sources): bounced light
     Bounds rb, fb;               // boxes of the receiver and of the source faces
     const ScenePolygon* rplane = nullptr;
     const ScenePolygon* splane = nullptr;
@@ -320,7 +385,7 @@ ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLi
 // every other sending face of s must not see r at all.
 ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& site) const {
     if (r == s || !receiverCandidate(r)) return Refusal::NotASite;
-    if (isClusterNode(s) ? !emitterGroup_[size_t(clusterIndex(s))] : !sourceHasEmitters(s)) return Refusal::NotASite;
+    if (isClusterNode(s) ? !sourceGroup_[size_t(clusterIndex(s))] : !sourceCandidate(s)) return Refusal::NotASite;
     const Scene& sc = h_.scene();
     std::vector<int> spolys;
     site.r = r;
@@ -342,6 +407,7 @@ ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& sit
         if (side >= 0) site.faces.push_back(p);
     }
     if (site.faces.empty()) return Refusal::NotASite;
+    for (int p : site.faces) site.reflects = site.reflects || !emits(sc.polygons[size_t(p)]);
     site.rplane = &rfirst;
     for (int p : site.faces) site.fb.extend(polygonBox(sc.polygons[size_t(p)]));
     // The source must be wholly in front of the receiver.
@@ -369,7 +435,8 @@ ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
         const ScenePolygon& qp = sc.polygons[size_t(q)];
         // Hidden from shadow rays (kNoLampShadow): the emitter's light passes it, as the final gather's
         // rays do where no texture is made, so it casts no shadow into the texture either.
-        if (!qp.blocksLamps) continue;
+        // Bounced light is blocked where diffuse rays are (kNoDiffuse lets them through).
+        if (!(site.reflects ? qp.diffuseVisible : qp.blocksLamps)) continue;
         Bounds qb = shrunk(polygonBox(qp), tol_);
         if (shaft.classify(qb) == Shaft::Outside) continue;
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
@@ -444,7 +511,8 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
             for (int b = 0; b < k; ++b) {
                 double ds = (frame.s1 - frame.s0) / k, dt = (frame.t1 - frame.t0) / k;
                 SourcePart part = sourcePart(sc, faces, frame, frame.s0 + ds * b, frame.s0 + ds * (b + 1),
-                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(site.parts.size()));
+                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(site.parts.size()),
+                                             sourceRadiosity(site.reflects));
                 if (part.pieces.empty()) continue;
                 site.plans.push_back(planSoftShadow(part.desc, site.tris, rec, fine));
                 site.partSettings.push_back(fine);
@@ -616,7 +684,8 @@ ConvolutionSites::Refusal ConvolutionSites::planBands(Site& site) const {
             for (int c = 0; c < k; ++c) {
                 double ds = (frame.s1 - frame.s0) / k, dt = (frame.t1 - frame.t0) / k;
                 SourcePart part = sourcePart(sc, site.faces, frame, frame.s0 + ds * c, frame.s0 + ds * (c + 1),
-                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(site.parts.size()));
+                                             frame.t0 + dt * a, frame.t0 + dt * (a + 1), int(site.parts.size()),
+                                             sourceRadiosity(site.reflects));
                 if (!part.pieces.empty()) site.parts.push_back(std::move(part));
             }
         if (site.parts.empty()) return Refusal::Invalid;

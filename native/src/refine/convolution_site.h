@@ -3,7 +3,8 @@
 // run in order of cost, and any that fails hands the pair back to the standard refiner:
 //   1. the transfer is significant (its bound exceeds epsilon: the caller checks);
 //   2. the receiver is planar and its box at least a_min of the scene's diagonal; the source is a
-//      planar group of emitting faces turned toward it;
+//      planar group of emitting faces turned toward it (with indirect_sources, of any faces that send
+//      light: a reflector's source image is then its own radiosity, beginPass);
 //   3. blockers stand in the shaft between the two boxes (Haines-Wallace), and every occluder in the
 //      shaft is either such a blocker or lies on or behind the source's or the receiver's plane;
 //   4. the convolution's blocker error E_rr, with up to n_max sub-blockers, is at most e_max;
@@ -25,13 +26,28 @@
 
 namespace penumbra {
 
+// What a source of reflectors sends (max channel): `at` a point of a face (ConvolutionSites::radiosityAt)
+// and the face's `mean` (its root element's, what the gather multiplies by). Empty for emitters, whose
+// emission is taken as uniform over each face.
+struct SourceRadiosity {
+    std::function<double(int polygon, const Vec3& p)> at;
+    std::function<double(int polygon)> mean;
+    explicit operator bool() const { return bool(at); }
+};
+
+
 class ConvolutionSites {
 public:
     // Counts tried pairs and refusals by reason into `counters` (see convolution_site.cpp).
     ConvolutionSites(const Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters);
     // Cheap tests (2.): could r receive a convolution link at all, could s send one.
     bool receiverCandidate(int r) const;
-    bool sourceHasEmitters(int s) const;
+    bool sourceCandidate(int s) const;
+    // indirect_sources: the radiosities a reflector's source image is drawn from during the coming
+    // refinement pass. `settled` elements existed before it (their radiosities are a solve's); `conv` are
+    // the links made so far and `reflected` what they gave each leaf (CompleteTextures::reflected), so that
+    // the image shows a source's own shadow textures as the display does.
+    void beginPass(size_t settled, const std::vector<ConvolutionLink>& conv, std::vector<Rgb> reflected);
     // Tests 2-5 for the pair; on success fills `out`, textures computed.
     bool tryLink(int r, int s, ConvolutionLink& out);
     // The same tests, nothing computed or counted: whether tryLink would succeed.
@@ -58,6 +74,11 @@ private:
     Refusal computeTextures(Site& site, ConvolutionLink& out);
     bool planarCluster(int c) const { return planar_[size_t(c)]; }
     void nodePolygons(int node, std::vector<int>& out) const;
+    bool sourceFace(const ScenePolygon& p) const;  // may light a receiver through a link
+    // A sending face's radiosity at p on it (max channel), as the display would draw it: its settled leaf
+    // at p, with the detail of the shadow textures it receives.
+    double radiosityAt(int polygon, const Vec3& p) const;
+    SourceRadiosity sourceRadiosity(bool reflects) const;  // empty for emitters
 
     const Hierarchy& h_;
     const RayCaster& rays_;
@@ -65,8 +86,12 @@ private:
     double tol_;       // boxes this close count as touching (an object resting on the receiver)
     double planeTol_;  // a point this close to a plane lies in it
     std::vector<char> planar_;       // per cluster: all its polygons share one plane
-    std::vector<char> hasEmitter_;   // per cluster: some polygon below emits
-    std::vector<char> emitterGroup_; // per cluster: every polygon below that sends light emits, on one plane
+    // A source face emits; with indirect_sources, it sends light at all.
+    std::vector<char> hasSource_;    // per cluster: some polygon below is a source face
+    std::vector<char> sourceGroup_;  // per cluster: every polygon below that sends light is a source face, on one plane
+    size_t settled_ = 0;             // beginPass's
+    ConvolutionField field_;
+    std::vector<Rgb> reflected_;
     Counters& counters_;
     std::atomic<double> seconds_{0};
 };

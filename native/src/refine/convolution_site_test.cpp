@@ -65,14 +65,27 @@ TEST(ConvolutionSites, TheFloorAndTheLampAreCandidates) {
     Sites s(floorUnderLamp(Card::Floating));
     EXPECT_TRUE(s.sites->receiverCandidate(0));
     EXPECT_FALSE(s.sites->receiverCandidate(1));  // light-only: receives nothing
-    EXPECT_TRUE(s.sites->sourceHasEmitters(1));
-    EXPECT_FALSE(s.sites->sourceHasEmitters(0));
+    EXPECT_TRUE(s.sites->sourceCandidate(1));
+    EXPECT_FALSE(s.sites->sourceCandidate(0));
     EXPECT_TRUE(s.sites->receiverCandidate(2));  // the card's box: 0.57, a_min of the diagonal: 0.15 x 3
     Settings big;
     big.aMin = 0.25;
     Sites t(floorUnderLamp(Card::Floating), big);
     EXPECT_FALSE(t.sites->receiverCandidate(2));  // now under a_min x diagonal = 0.75
     EXPECT_TRUE(t.sites->receiverCandidate(0));
+}
+
+TEST(ConvolutionSites, AReflectorIsASourceOnlyWithIndirectSources) {
+    Sites off(floorUnderLamp(Card::Floating));
+    EXPECT_FALSE(off.sites->sourceCandidate(2));  // the grey card reflects but does not emit
+    Settings s;
+    s.indirectSources = true;
+    Sites on(floorUnderLamp(Card::Floating), s);
+    EXPECT_TRUE(on.sites->sourceCandidate(2));
+    EXPECT_TRUE(on.sites->sourceCandidate(1));
+    EXPECT_TRUE(on.sites->sourceCandidate(0));  // the floor too: it sends what it reflects
+    Sites hidden(floorUnderLamp(Card::Floating, kNoDiffuse), s);
+    EXPECT_FALSE(hidden.sites->sourceCandidate(2));  // Diffuse off: its bounce reaches no one
 }
 
 TEST(ConvolutionSites, AFloatingCardMakesAConvolutionLink) {

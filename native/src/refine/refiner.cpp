@@ -143,7 +143,7 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
 }
 
 bool Refiner::tryConvolution(int ri, int si) {
-    if (!sites_ || !sites_->receiverCandidate(ri) || !sites_->sourceHasEmitters(si)) return false;
+    if (!sites_ || !sites_->receiverCandidate(ri) || !sites_->sourceCandidate(si)) return false;
     // A transfer the standard refiner links at once needs no texture.
     if (receiverRho(ri) * fluxBound(h_, si, nodeBox(h_, ri)) <= threshold_) return false;
     ConvolutionLink l;
@@ -151,6 +151,11 @@ bool Refiner::tryConvolution(int ri, int si) {
     std::lock_guard<std::mutex> lock(convMutex_);
     conv_.push_back(std::move(l));
     return true;
+}
+
+void Refiner::setSolvedTextures(const std::vector<ConvolutionLink>& conv, const CompleteTextures& textures) {
+    if (!sites_ || !settings_.indirectSources) return;
+    sites_->beginPass(h_.size(), conv, conv.empty() ? std::vector<Rgb>{} : textures.reflected(h_, conv));
 }
 
 std::vector<ConvolutionLink> Refiner::convolutionLinks() const {
@@ -547,7 +552,7 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     // to its emitters (the paper's choice of source refinement before receiver refinement).
     // Only where such a link would then pass its tests: elsewhere the split is the standard one, and a
     // scene without convolution sites refines exactly as with convolution off.
-    bool keepReceiver = canS && sites_ && sites_->receiverCandidate(ri) && sites_->sourceHasEmitters(si) &&
+    bool keepReceiver = canS && sites_ && sites_->receiverCandidate(ri) && sites_->sourceCandidate(si) &&
                         sites_->linkPossibleBelow(ri, si, [&](int g) {
                             return receiverRho(ri) * fluxBound(h_, g, nodeBox(h_, ri)) > threshold_;
                         });

@@ -39,6 +39,9 @@ public:
     // are never re-judged, so each pair appears once over all passes.
     std::vector<ConvolutionLink> convolutionLinks() const;
     const ConvolutionSites* convolutionSites() const { return sites_.get(); }
+    // indirect_sources: the links and complete textures of the last solve, from which the next rerefine
+    // draws a reflecting source's image (its radiosity with its own shadow textures).
+    void setSolvedTextures(const std::vector<ConvolutionLink>& conv, const CompleteTextures& textures);
 
     // The faces' shares of the partly seen links into clusters that were kept rather than opened; the
     // solver reads them (Solver::setClusterFaceVisibility).

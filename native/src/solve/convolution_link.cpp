@@ -68,7 +68,9 @@ void convolutionFactors(const Scene& sc, const ConvolutionLink& l, const Vec3& y
         const SourcePiece& piece = l.pieces[k];
         const ScenePolygon& sp = sc.polygons[size_t(l.sourcePolygons[size_t(piece.face)])];
         double v = vis[size_t(piece.part)];
-        out[k] = v > 0 && dot(y - sp.geom.v[0], sp.normal) > 0 ? v * pointToPolygonFormFactor(y, n, piece.geom) : 0.0;
+        out[k] = v > 0 && dot(y - sp.geom.v[0], sp.normal) > 0
+                     ? v * piece.weight * pointToPolygonFormFactor(y, n, piece.geom)
+                     : 0.0;
     }
 }
 

@@ -1,7 +1,8 @@
 // Convolution links (Soler & Sillion 1998, §3-4): the whole transfer from a planar group of emitting
 // faces S to a planar receiver R, with the shadows of the blockers between them held in one
 // SoftShadowTexture per part of the source. At a receiver point y the link delivers
-//     I(y) = sum over source parts j of V_j(y) * sum over the pieces of faces f in part j of B_f * F(y <- piece)
+//     I(y) = sum over source parts j of V_j(y) * sum over the pieces of faces f in part j of B_f * w * F(y <- piece)
+// (w the piece's share of its face's radiosity, 1 for emitters)
 // with F Lambert's exact unoccluded point-to-polygon form factor and V_j looked up by central projection
 // from the part's centre. V weights the source by area (its emission), not by the form factor's kernel, so
 // a source is cut into k x k parts small against its distance to the receiver: the error of that
@@ -28,6 +29,9 @@ struct SourcePiece {
     Polygon geom;  // a source face clipped to one part
     int face = 0;  // index into ConvolutionLink::sourcePolygons
     int part = 0;  // index into ConvolutionLink::textures
+    // The piece's mean radiosity over its face's (root element's), measured when the link was made: a
+    // reflecting source (indirect_sources) is brighter in some parts than others; 1 for an emitter.
+    double weight = 1;
 };
 
 struct ConvolutionLink {

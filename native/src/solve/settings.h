@@ -64,6 +64,11 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        band (a shelf before a wall: 0.64 % worst against the exact light). Off by default: it moves results  \
        wherever it links (classroom walls and chair backs) and was not scored against Cycles. */             \
     X(bool, wallLinks, "wall_links", false, '[', 0, 1, ']')                                                \
+    /* Indirect sources (issue 12): a reflecting face (or a planar group of them) lit by the first pass is   \
+       a convolution source too, its source image drawn from its own radiosity and the shadow textures it    \
+       receives (the paper's source "rendered with all its radiosity textures", §4.1). Off by default: not   \
+       scored against Cycles on furnished rooms. */                                                          \
+    X(bool, indirectSources, "indirect_sources", false, '[', 0, 1, ']')                                    \
     /* A cluster source is linked whole only when its radius is at most far_field of its distance to       \
        the receiver; nearer, it is opened (its light is evaluated face by face there, node.cpp, but        \
        with one visible share). 0.5 links less (the 10k office at epsilon 0.002: 2.37M -> 0.98M links)     \
