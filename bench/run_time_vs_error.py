@@ -45,7 +45,8 @@ PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.0
 METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True}),
            ("contact", {"convolution": True, "contact_slabs": True})]
 CYCLES_SAMPLES = [4, 16, 64, 256]
-RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128, "classroom": 128}
+RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128, "classroom": 128,
+              "uplight": 128}
 
 
 def parse_args():

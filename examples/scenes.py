@@ -20,6 +20,9 @@
 - window: issue 13's example, a closed 4 m x 4 m x 2.5 m room lit from outside only through a 1 m x 1 m window
   with a cross-shaped frame: a SUN lamp (35 degrees up) whose patch falls on the floor and a box, a Sky Texture
   world (sun disc off, its sun where the lamp is), and inside a POINT lamp with a 10 cm radius in a corner.
+- uplight: a 5 m x 4 m x 2.8 m room lit only by two area lights facing up 0.4 m under its white ceiling, so that the
+  floor, a table and two stools get bounced light only, from a large source brightest over the lamps: the case
+  of issue 12's indirect_sources (a reflector as a convolution source).
 - light_point, light_spot, light_sun, light_world, light_sky, light_area: one light type each (issue 13's
   benchmark), over the same open scene: a 4 m x 4 m floor, a back wall and a box, which casts the shadow.
 
@@ -37,7 +40,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cornell_box  # noqa: E402
 
 LIGHT_SCENES = ("light_point", "light_spot", "light_sun", "light_world", "light_sky", "light_area")
-SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable", "classroom", "window") + LIGHT_SCENES
+SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable", "classroom", "window",
+          "uplight") + LIGHT_SCENES
 CLASSROOM_POLYGONS = 1000
 
 
@@ -210,6 +214,28 @@ def build_office(scene=None):
     obs["Light1"] = _area_light("Light1", 0.8, 300.0, (-1.4, 0.2, H - 0.05), (1.0, 0.95, 0.85), scene)
     obs["Light2"] = _area_light("Light2", 0.8, 300.0, (1.4, 0.2, H - 0.05), (1.0, 0.95, 0.85), scene)
     obs["Camera"] = _camera((-2.6, -2.0, 2.2), (70.0, 0.0, -52.0), 18.0, scene)
+    _black_world(scene)
+    return obs
+
+
+def build_uplight(scene=None):
+    scene = scene or bpy.context.scene
+    W, D, H = 5.0, 4.0, 2.8
+    obs = {"Room": _office_room(W, D, H, (10, 8, 6), "Uplight", scene)}
+    fur = MeshBuilder()
+    fur.box((-0.8, -0.5, 0.72), (0.8, 0.5, 0.76), mat=0, divisions=(4, 2, 1))     # table top
+    for sx in (-0.75, 0.7):
+        for sy in (-0.45, 0.4):
+            fur.box((sx, sy, 0.0), (sx + 0.05, sy + 0.05, 0.72), mat=0, bottom=False)
+    for cx in (-1.6, 1.6):                                                          # two stools
+        fur.box((cx - 0.2, -0.2, 0.0), (cx + 0.2, 0.2, 0.45), mat=1, bottom=False)
+    obs["Furniture"] = fur.build("Furniture", [_diffuse("UplightTable", (0.6, 0.45, 0.3)),
+                                               _diffuse("UplightStool", (0.2, 0.3, 0.5))], scene)
+    for i, x in enumerate((-1.2, 1.2)):
+        lamp = _area_light(f"Uplight{i + 1}", 0.6, 300.0, (x, 0.0, H - 0.4), scene=scene)
+        lamp.rotation_euler = (math.pi, 0.0, 0.0)   # facing up: the floor sees none of it
+        obs[lamp.name] = lamp
+    obs["Camera"] = _camera((-2.2, -1.8, 2.0), (70.0, 0.0, -50.0), 18.0, scene)
     _black_world(scene)
     return obs
 
@@ -391,6 +417,8 @@ def build(name, scene=None, polygons=5000):
         return scalable_scene.build_bpy(CLASSROOM_POLYGONS, scene, layout="classroom")
     if name == "blockers":
         return build_blockers(scene)
+    if name == "uplight":
+        return build_uplight(scene)
     if name == "lattice":
         return build_lattice(scene)
     if name == "window":
