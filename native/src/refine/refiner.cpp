@@ -57,27 +57,33 @@ int samplePoints(const Element& e, Vec3* pts) {
     return 3;
 }
 
-// The point of the element nearest to x, to 1/256 of its size: a 5 x 5 parametric grid (edges
-// included), then two finer grids around the best point.
-Vec3 nearestPoint(const Element& e, const Vec3& x) {
-    double cs = 0.5, ct = 0.5, half = 0.5;
-    for (int level = 0; level < 3; ++level) {
-        double bs = cs, bt = ct, bestD = HUGE_VAL;
-        for (int i = 0; i <= 4; ++i)
-            for (int j = 0; j <= 4; ++j) {
-                double u = std::clamp(cs - half + half * i / 2, 0.0, 1.0), v = std::clamp(ct - half + half * j / 2, 0.0, 1.0);
-                if (e.n == 3 && u + v > 1) continue;
-                Vec3 q = e.pointAt(u, v);
-                double d = length2(q - x);
-                if (d < bestD) { bestD = d; bs = u; bt = v; }
-            }
-        cs = bs;
-        ct = bt;
-        half /= 4;
+// The point of the element nearest to x: x projected onto the element's plane (normal n), or, outside
+// it, the nearest point of its edges. (A 5 x 5 parametric grid refined twice found it to 1/256 of the
+// element's size in 75 evaluations; five such searches per standard link were 11 % of the first
+// refinement pass of the 10k office.)
+Vec3 nearestPoint(const Element& e, const Vec3& n, const Vec3& x) {
+    Vec3 p = x - n * dot(x - e.center, n);
+    bool inside = true;
+    Vec3 best = p;
+    double bestD = HUGE_VAL;
+    for (int k = 0; k < e.n; ++k) {
+        const Vec3& a = e.v[size_t(k)];
+        const Vec3 ab = e.v[size_t((k + 1) % e.n)] - a;
+        if (dot(cross(n, ab), p - a) >= 0) continue;
+        inside = false;
+        double len2 = length2(ab);
+        double t = len2 > 0 ? std::clamp(dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+        Vec3 q = a + ab * t;
+        double d = length2(q - p);
+        if (d < bestD) {
+            bestD = d;
+            best = q;
+        }
     }
+    if (!inside) p = best;
     // Off the edge it may share with the source, where the source is seen edge-on (form factor 0)
     // though a hair inside it fills half the view.
-    return e.pointAt(cs + (0.5 - cs) / 32, ct + (0.5 - ct) / 32);
+    return p + (e.center - p) * (1.0 / 32);
 }
 
 // The plane of an element's polygon moved down to its lowest vertex (a warped quad's corners stray from
@@ -263,12 +269,12 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
     // ceiling tile meeting a wall) lights a strip along their common edge that none of the points
     // above may touch, and the link would be judged smooth while it under-reads its mean: a closed
     // box lost 0.8 % of its light that way without clustering.
-    pts[total++] = nearestPoint(r, s.center);
+    pts[total++] = nearestPoint(r, nr, s.center);
     {
         Vec3 best = r.center;
         double bestD = HUGE_VAL;
         for (int k = 0; k < s.n; ++k) {
-            Vec3 q = nearestPoint(r, s.v[k]);
+            Vec3 q = nearestPoint(r, nr, s.v[k]);
             double d = length2(q - s.v[k]);
             if (d < bestD) { bestD = d; best = q; }
         }
