@@ -67,6 +67,10 @@ private:
     // Points on the faces of a node that look toward `toward`, spread by projected area; false when
     // none does.
     bool sampleNode(int node, const Vec3& toward, bool receiver, uint64_t seed, int n, Vec3* pts) const;
+    struct NodeSampler;
+    // A cluster's faces as sampleNode draws them toward `toward`; false when none faces it.
+    bool buildSampler(int cluster, const Vec3& toward, bool receiver, NodeSampler& out) const;
+    void drawFromSampler(const NodeSampler& s, uint64_t seed, int n, Vec3* pts) const;
     std::vector<int> children(int node, bool receiver);
     bool receives(int node) const;
     bool sends(int node) const;
