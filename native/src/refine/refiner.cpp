@@ -86,6 +86,19 @@ Vec3 nearestPoint(const Element& e, const Vec3& n, const Vec3& x) {
     return p + (e.center - p) * (1.0 / 32);
 }
 
+// Appends the parts in order, each freed once copied. Links are the solve's largest array (29.5M, 700 MB at 100k
+// polygons): appending the parts to a growing vector held the parts, the old and the new buffer and, in a
+// refinement pass, the input links at once.
+void appendParts(std::vector<Link>& links, std::vector<std::vector<Link>>& parts) {
+    size_t total = links.size();
+    for (const std::vector<Link>& p : parts) total += p.size();
+    links.reserve(total);
+    for (std::vector<Link>& p : parts) {
+        links.insert(links.end(), p.begin(), p.end());
+        std::vector<Link>().swap(p);
+    }
+}
+
 // The plane of an element's polygon moved down to its lowest vertex (a warped quad's corners stray from
 // the polygon's plane): points of the element lie on or in front of it.
 RayCaster::HalfSpace lowestPlane(const Element& e, const Vec3& n) {
@@ -695,8 +708,7 @@ bool Refiner::shareByFaces(int ri, int si) {
         counters_.add(kRaysCluster, size_t(n));
     }
     counters_.add(kSharedClusterLinks);
-    std::lock_guard<std::mutex> lock(faceVis_.mutex);
-    faceVis_.shares[{nodeKey(h_, ri), nodeKey(h_, si)}] = std::move(share);
+    faceVis_.record(nodeKey(h_, ri), nodeKey(h_, si), share.data(), share.size());
     return true;
 }
 
@@ -801,7 +813,9 @@ void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
 }
 
 std::vector<Link> Refiner::linkAll(Progress* progress) {
-    return h_.clusters().empty() ? linkFacePairs(progress) : linkFromRoot(progress);
+    std::vector<Link> links = h_.clusters().empty() ? linkFacePairs(progress) : linkFromRoot(progress);
+    faceVis_.finish();
+    return links;
 }
 
 std::vector<Link> Refiner::linkFromRoot(Progress* progress) {
@@ -840,7 +854,7 @@ std::vector<Link> Refiner::linkFromRoot(Progress* progress) {
         }
     });
     if (poll.cancelled()) throw Cancelled();
-    for (auto& v : perPair) links.insert(links.end(), v.begin(), v.end());
+    appendParts(links, perPair);
     return links;
 }
 
@@ -884,7 +898,7 @@ std::vector<Link> Refiner::linkFacePairs(Progress* progress) {
     });
     if (poll.cancelled()) throw Cancelled();
     std::vector<Link> links;
-    for (auto& v : perReceiver) links.insert(links.end(), v.begin(), v.end());
+    appendParts(links, perReceiver);
     return links;
 }
 
@@ -937,7 +951,8 @@ std::vector<Link> Refiner::rerefine(const std::vector<Link>& links, Progress* pr
     if (poll.cancelled()) throw Cancelled();
     changed = anyChange;
     std::vector<Link> result;
-    for (auto& v : out) result.insert(result.end(), v.begin(), v.end());
+    appendParts(result, out);
+    faceVis_.finish();
     return result;
 }
 

@@ -2,7 +2,6 @@
 // refinement pass can re-judge the link with the source's new radiosity without casting rays again.
 #pragma once
 #include <cstdint>
-#include <map>
 #include <mutex>
 #include <utility>
 #include <vector>
@@ -20,10 +19,31 @@ struct Link {
 };
 
 // Per partly seen link into a cluster that the refiner kept instead of opening: each face's own visible share
-// of the source, in the cluster's polygon order, keyed by (receiver cluster key, source key).
-struct ClusterFaceVisibility {
-    std::mutex mutex;
-    std::map<std::pair<uint64_t, uint64_t>, std::vector<float>> shares;
+// of the source, in the cluster's polygon order, keyed by (receiver cluster key, source key). Kept in one
+// float array with a sorted index: as a std::map of vectors it took ~140 bytes per link besides the shares
+// (a fifth of the 20k office's peak memory at epsilon 0.002).
+class ClusterFaceVisibility {
+public:
+    // Thread-safe. A pair recorded again (a later refinement pass) replaces its shares at the next finish().
+    void record(uint64_t receiverKey, uint64_t sourceKey, const float* share, size_t n);
+    // Sorts the index and drops replaced shares; call before find() once a refinement pass is done.
+    void finish();
+    // The pair's shares (one per face of the receiving cluster), or null.
+    const float* find(uint64_t receiverKey, uint64_t sourceKey) const;
+    bool empty() const { return index_.empty(); }
+    size_t size() const { return index_.size(); }
+
+private:
+    struct Entry {
+        uint64_t receiver, source;
+        uint64_t offset;  // into shares_
+        uint32_t count;
+        uint32_t order;   // recording order: the last of a pair wins
+    };
+    std::mutex mutex_;
+    std::vector<Entry> index_;
+    std::vector<float> shares_;
+    bool sorted_ = true;
 };
 
 }  // namespace penumbra

@@ -22,11 +22,9 @@ void Solver::prepareClusters(const std::vector<Link>& links) {
         int r = links[groupStart_[g]].receiver;
         if (!isClusterNode(r)) break;
         clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
-        if (faceVis_ && !faceVis_->shares.empty())
-            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
-                auto it = faceVis_->shares.find({nodeKey(h_, r), nodeKey(h_, links[i].source)});
-                if (it != faceVis_->shares.end() && links[i].partial()) linkFaceV_[i] = &it->second;
-            }
+        if (faceVis_ && !faceVis_->empty())
+            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
+                if (links[i].partial()) linkFaceV_[i] = faceVis_->find(nodeKey(h_, r), nodeKey(h_, links[i].source));
     }
 }
 
@@ -78,7 +76,7 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
                 auto [lo, hi] = clusterLinks_[size_t(c)];
                 for (size_t i = lo; i < hi; ++i) {
                     double v = links[i].V;
-                    if (linkFaceV_[i]) v = (*linkFaceV_[i])[size_t(polyPos_[p] - ct[c].begin)];
+                    if (linkFaceV_[i]) v = linkFaceV_[i][size_t(polyPos_[p] - ct[c].begin)];
                     if (unoccluded_)
                         v = 1.0;
                     else if (v <= 0)

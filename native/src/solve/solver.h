@@ -77,7 +77,7 @@ private:
     const CompleteTextures* textures_ = nullptr;
     const std::vector<Rgb>* lightE_ = nullptr;
     const ClusterFaceVisibility* faceVis_ = nullptr;
-    std::vector<const std::vector<float>*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
+    std::vector<const float*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
     std::vector<int> polyPos_;                            // polygon -> its index in the cluster tree's order
 };
 
