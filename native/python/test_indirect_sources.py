@@ -104,24 +104,24 @@ def floor_error(plate, settings):
 
 
 def test_a_lit_ceiling_shades_the_floor_through_a_texture_weighted_by_its_radiosity():
-    """One link from the ceiling to the floor, whose image is the ceiling's radiosity: worst 5.5 %, mean 1.0 % of
+    """One link from the ceiling to the floor, whose image is the ceiling's radiosity: worst 3.1 %, mean 0.6 % of
     the peak (a uniform image, measured by hand: 44.6 %, 4.6 %). The same settings without it refine the floor
-    under the card with standard links: worst 11.6 %, mean 4.1 %."""
+    under the card with standard links: worst 13.4 %, mean 4.4 %."""
     worst, mean, links = floor_error(False, {"indirect_sources": True})
     print(f"indirect_sources: worst {worst:.4f} mean {mean:.4f}")
     assert links == [([1], [0])]
-    assert worst <= 0.07 and mean <= 0.015
+    assert worst <= 0.045 and mean <= 0.01
     std_worst, std_mean, std_links = floor_error(False, {})
     print(f"standard links: worst {std_worst:.4f} mean {std_mean:.4f}")
     assert std_links == []  # off by default: only emitters are sources
-    assert worst < 0.75 * std_worst and mean < 0.5 * std_mean
+    assert worst < 0.5 * std_worst and mean < 0.5 * std_mean
 
 
 def test_the_source_image_holds_the_ceilings_own_shadow_texture():
     """A plate between the lamp and the ceiling gives the ceiling a texture of its own (the lamp's link). The
     ceiling is not meshed for it, so its leaves hold only the texture's mean: an image from the leaves alone puts
     the plate's shadow nowhere (worst 39 %, mean 5.8 %, measured by hand). With the texture drawn into the image:
-    4.4 %, 0.6 %."""
+    4.6 %, 0.6 %."""
     worst, mean, links = floor_error(True, {"indirect_sources": True})
     print(f"with the ceiling's texture: worst {worst:.4f} mean {mean:.4f}")
     assert links == [([1], [0]), ([2], [1])]

@@ -254,8 +254,10 @@ double ConvolutionSites::radiosityAt(int polygon, const Vec3& p) const {
     // a shared edge still picks one). Elements split during this pass carry their parent's radiosity.
     int e = polygon;
     for (int fc = h_.firstChild(e); fc >= 0 && size_t(fc) < settled_; fc = h_.firstChild(e)) {
+        const int children = h_[size_t(e)].numChildren;
+        int best = fc;
         double bestInside = -HUGE_VAL;
-        for (int k = 0; k < h_[size_t(e)].numChildren; ++k) {
+        for (int k = 0; k < children; ++k) {
             const Element& c = h_[size_t(fc + k)];
             double inside = HUGE_VAL;
             for (int i = 0; i < c.n; ++i) {
@@ -265,9 +267,10 @@ double ConvolutionSites::radiosityAt(int polygon, const Vec3& p) const {
             }
             if (inside > bestInside) {
                 bestInside = inside;
-                e = fc + k;
+                best = fc + k;
             }
         }
+        e = best;
     }
     Rgb B = h_[size_t(e)].B;
     // A face lit through convolution links holds only their mean over each leaf; the texture's detail is
