@@ -112,7 +112,6 @@ struct SourcePart {
     std::vector<SourcePiece> pieces;
 };
 
-
 SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const SourceFrame& f, double s0, double s1,
                       double t0, double t1, int part, const SourceRadiosity& radiosity) {
     SourcePart out;
@@ -155,16 +154,14 @@ SourcePart sourcePart(const Scene& sc, const std::vector<int>& faces, const Sour
                 for (int b = 0; b < ss; ++b) {
                     Vec3 p = f.at(s0 + (s1 - s0) * (col + (b + 0.5) / ss) / kEmissionImage,
                                   t0 + (t1 - t0) * (row + (a + 0.5) / ss) / kEmissionImage);
-                    for (const SourcePiece& pc : out.pieces) {
+                    for (size_t k = 0; k < out.pieces.size(); ++k) {
+                        const SourcePiece& pc = out.pieces[k];
                         const ScenePolygon& face = sc.polygons[size_t(faces[size_t(pc.face)])];
                         if (!insideConvex(pc.geom, face.normal, p)) continue;
                         double b = radiosity ? radiosity.at(faces[size_t(pc.face)], p) : maxComponent(face.emission);
                         sum += b;
-                        if (radiosity) {
-                            size_t k = size_t(&pc - out.pieces.data());
-                            pieceSum[k] += b;
-                            pieceCount[k] += 1;
-                        }
+                        pieceSum[k] += b;
+                        pieceCount[k] += 1;
                     }
                 }
             img.texels[size_t(row) * kEmissionImage + size_t(col)] = float(sum / (ss * ss));

@@ -78,7 +78,7 @@ private:
     const std::vector<Rgb>* lightE_ = nullptr;
     const ClusterFaceVisibility* faceVis_ = nullptr;
     std::vector<const float*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
-    std::vector<int> polyPos_;                            // polygon -> its index in the cluster tree's order
+    std::vector<int> polyPos_;             // polygon -> its index in the cluster tree's order
 };
 
 }  // namespace penumbra
