@@ -165,7 +165,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         h.updateClusterFlux();
         h.updateRadiosityDeviation();
         refiner.setSolvedTextures(conv, textures);
-        links = refiner.rerefine(links, progress, changed);
+        refiner.rerefine(links, progress, changed);
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();
         if (!changed) break;  // no element was split: the complete textures still fit the leaves

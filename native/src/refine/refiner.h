@@ -27,9 +27,10 @@ public:
     // Refines from the root cluster link, or without clusters links every receiving polygon with
     // every polygon that can send it light.
     std::vector<Link> linkAll(Progress* progress);
-    // Re-judges links with the sources' current radiosities; splits those now too coarse.
+    // Re-judges links with the sources' current radiosities; splits those now too coarse. In place: a
+    // replaced link's parts follow the kept links, so the order is not (receiver, source) afterwards.
     // `changed` tells whether any link was replaced.
-    std::vector<Link> rerefine(const std::vector<Link>& links, Progress* progress, bool& changed);
+    void rerefine(std::vector<Link>& links, Progress* progress, bool& changed);
 
     // Radiosity error a link can cause on its receiver (W/m^2, max over colour channels).
     double linkError(const Link& l) const;
@@ -91,6 +92,7 @@ private:
     // visible: about rho * Bdev * F * min(1, size / distance).
     double gradientError(const Link& l) const;
     void keep(const Link& l, std::vector<Link>& out);  // appends, within settings_.maxLinks
+    bool countLink(const Link& l);                     // false for a link not worth keeping; throws past maxLinks
     bool emits(int node) const;                        // some face of the node emits
     // Fig. 4: a significant transfer onto a large planar receiver through blockers becomes one
     // convolution link; true when it did.

@@ -53,7 +53,7 @@ TEST(Refiner, AnUnhiddenTransferWithinEpsilonIsLinkedAtTheRoots) {
     EXPECT_EQ(l.source, 1);
     EXPECT_EQ(l.V, 1.0f);
     EXPECT_GT(l.Fmean, 0.0f);
-    EXPECT_EQ(l.F, l.Fmean);
+    EXPECT_EQ(l.F(), l.Fmean);
     EXPECT_EQ(r.h->size(), r.h->numRoots());  // nothing split
     EXPECT_EQ(r.counters.values().at("rays"), 0u);
     EXPECT_EQ(r.counters.values().at("shafts_clear"), 1u);

@@ -1,6 +1,7 @@
 #include "solve/link.h"
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <tuple>
 
@@ -8,7 +9,9 @@ namespace penumbra {
 
 void ClusterFaceVisibility::record(uint64_t receiverKey, uint64_t sourceKey, const float* share, size_t n) {
     std::lock_guard<std::mutex> lock(mutex_);
-    index_.push_back({receiverKey, sourceKey, shares_.size(), uint32_t(n), uint32_t(index_.size())});
+    if (shares_.size() + n > std::numeric_limits<uint32_t>::max())
+        throw std::length_error("ClusterFaceVisibility: more than 2^32 face shares");
+    index_.push_back({receiverKey, sourceKey, uint32_t(shares_.size()), uint32_t(n)});
     shares_.insert(shares_.end(), share, share + n);
     sorted_ = false;
 }
@@ -17,23 +20,32 @@ void ClusterFaceVisibility::finish() {
     std::lock_guard<std::mutex> lock(mutex_);
     if (sorted_) return;
     std::sort(index_.begin(), index_.end(), [](const Entry& a, const Entry& b) {
-        return std::tie(a.receiver, a.source, a.order) < std::tie(b.receiver, b.source, b.order);
+        return std::tie(a.receiver, a.source, a.offset) < std::tie(b.receiver, b.source, b.offset);
     });
-    // Keep the last recording of each pair, its shares moved into a fresh array in index order.
-    std::vector<Entry> kept;
-    std::vector<float> shares;
+    // Keep the last recording of each pair. Its shares move down over the dropped ones in place, in the
+    // order they were recorded (a fresh copy of both arrays was the peak of a pass at 10k polygons).
+    constexpr uint32_t kDropped = std::numeric_limits<uint32_t>::max();
+    std::vector<uint32_t> byOffset;
     for (size_t i = 0; i < index_.size(); ++i) {
-        const Entry& e = index_[i];
+        Entry& e = index_[i];
         if (i + 1 < index_.size() && index_[i + 1].receiver == e.receiver && index_[i + 1].source == e.source)
-            continue;
-        kept.push_back({e.receiver, e.source, shares.size(), e.count, uint32_t(kept.size())});
-        shares.insert(shares.end(), shares_.begin() + ptrdiff_t(e.offset),
-                      shares_.begin() + ptrdiff_t(e.offset + e.count));
+            e.count = kDropped;
+        else
+            byOffset.push_back(uint32_t(i));
     }
-    kept.shrink_to_fit();
-    shares.shrink_to_fit();
-    index_.swap(kept);
-    shares_.swap(shares);
+    std::sort(byOffset.begin(), byOffset.end(),
+              [&](uint32_t a, uint32_t b) { return index_[a].offset < index_[b].offset; });
+    size_t w = 0;
+    for (uint32_t i : byOffset) {
+        Entry& e = index_[i];
+        std::copy(shares_.begin() + ptrdiff_t(e.offset), shares_.begin() + ptrdiff_t(e.offset + e.count),
+                  shares_.begin() + ptrdiff_t(w));
+        e.offset = uint32_t(w);
+        w += e.count;
+    }
+    shares_.resize(w);
+    index_.erase(std::remove_if(index_.begin(), index_.end(), [&](const Entry& e) { return e.count == kDropped; }),
+                 index_.end());
     sorted_ = true;
 }
 

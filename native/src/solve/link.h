@@ -11,10 +11,12 @@ namespace penumbra {
 struct Link {
     int receiver = -1;
     int source = -1;
-    float F = 0;       // receiver-averaged form factor times visibility
     float Fmean = 0;   // unoccluded receiver-averaged form factor
     float Fspread = 0; // max - min of the point form factors over the receiver
     float V = 1;       // visible fraction of the rays
+    // Receiver-averaged form factor times visibility. Computed, not stored: links are the solve's
+    // largest array, 20 bytes each instead of 24.
+    float F() const { return Fmean * V; }
     bool partial() const { return V > 0 && V < 1; }
 };
 
@@ -34,11 +36,11 @@ public:
     size_t size() const { return index_.size(); }
 
 private:
+    // 24 bytes: offsets grow with the recording order, which therefore needs no field of its own.
     struct Entry {
         uint64_t receiver, source;
-        uint64_t offset;  // into shares_
+        uint32_t offset;  // into shares_
         uint32_t count;
-        uint32_t order;   // recording order: the last of a pair wins
     };
     std::mutex mutex_;
     std::vector<Entry> index_;

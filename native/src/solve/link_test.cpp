@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+#include <random>
 #include <thread>
 #include <vector>
 
@@ -29,6 +31,30 @@ TEST(ClusterFaceVisibility, FindsEachPairsSharesAndALaterRecordingReplacesThem) 
     ASSERT_EQ(v.size(), 2u);
     EXPECT_EQ(v.find(7, 3)[2], 0.0f);
     EXPECT_EQ(v.find(2, 9)[0], 0.0f);
+}
+
+// finish() moves the kept shares down over the replaced ones in place: pairs recorded again with other lengths,
+// in passes, must each read back their last shares.
+TEST(ClusterFaceVisibility, KeepsEachPairsLastSharesOverPassesOfReplacements) {
+    ClusterFaceVisibility v;
+    std::map<std::pair<uint64_t, uint64_t>, std::vector<float>> model;
+    std::mt19937 rng(5);
+    for (int pass = 0; pass < 4; ++pass) {
+        for (int k = 0; k < 300; ++k) {
+            uint64_t r = rng() % 40, s = rng() % 12;
+            std::vector<float> share(1 + rng() % 70);
+            for (float& x : share) x = float(rng() % 1000) / 999.0f;
+            v.record(r, s, share.data(), share.size());
+            model[{r, s}] = share;
+        }
+        v.finish();
+        ASSERT_EQ(v.size(), model.size());
+        for (const auto& [key, share] : model) {
+            const float* f = v.find(key.first, key.second);
+            ASSERT_NE(f, nullptr);
+            for (size_t i = 0; i < share.size(); ++i) ASSERT_EQ(f[i], share[i]) << pass << " " << i;
+        }
+    }
 }
 
 TEST(ClusterFaceVisibility, RecordsFromSeveralThreads) {

@@ -11,13 +11,16 @@ namespace penumbra {
 
 void Solver::prepareClusters(const std::vector<Link>& links) {
     clusterLinks_.assign(h_.clusters().size(), {0, 0});
-    linkFaceV_.assign(links.size(), nullptr);
+    // Links into clusters sort first (clusters are negative nodes): only those need a face share.
+    size_t intoClusters = 0;
+    while (intoClusters < links.size() && isClusterNode(links[intoClusters].receiver)) ++intoClusters;
+    linkFaceV_.assign(intoClusters, nullptr);
+    linkFaceV_.shrink_to_fit();
     const ClusterTree& ct = h_.clusters();
     if (polyPos_.empty() && !ct.empty()) {
         polyPos_.assign(h_.scene().polygons.size(), -1);
         for (size_t k = 0; k < ct.polygons().size(); ++k) polyPos_[size_t(ct.polygons()[k])] = int(k);
     }
-    // Links into clusters sort first (clusters are negative nodes).
     for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
         int r = links[groupStart_[g]].receiver;
         if (!isClusterNode(r)) break;
@@ -52,7 +55,7 @@ void Solver::gather(const std::vector<Link>& links) {
                 if (isClusterNode(l.source))
                     sum += fluxAt(h_, l.source, re.center, &n) * (unoccluded_ ? 1.0 : double(l.V));
                 else
-                    sum += h_[l.source].B * double(unoccluded_ ? l.Fmean : l.F);
+                    sum += h_[l.source].B * double(unoccluded_ ? l.Fmean : l.F());
             }
             re.irradiance = sum;
         }

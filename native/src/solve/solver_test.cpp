@@ -129,7 +129,7 @@ TEST(Furnace, OneLampInAClosedBoxConservesEnergy) {
             for (const Link& l : sol->links()) {
                 if (isClusterNode(l.receiver) || isClusterNode(l.source)) continue;
                 int rg = group(h[size_t(l.receiver)].polygon), sg = group(h[size_t(l.source)].polygon);
-                recv[rg][sg] += h[size_t(l.source)].B.x * l.F * h[size_t(l.receiver)].area;
+                recv[rg][sg] += h[size_t(l.source)].B.x * l.F() * h[size_t(l.receiver)].area;
             }
             double sent[8] = {};
             for (size_t i = 0; i < h.size(); ++i) if (h[i].isLeaf()) sent[group(h[i].polygon)] += h[i].area * h[i].B.x;
