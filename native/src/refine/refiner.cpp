@@ -853,7 +853,7 @@ std::vector<Link> Refiner::linkFromRoot(Progress* progress) {
     std::vector<std::vector<Link>> perPair(ready.size());
     std::atomic<size_t> done{0};
     ProgressPoll poll(progress, "refine");
-    parallelFor(ready.size(), threads, 1, [&](size_t b, size_t e, int t) {
+    parallelForDynamic(ready.size(), threads, 1, [&](size_t b, size_t e, int t) {
         for (size_t i = b; i < e && !poll.cancelled(); ++i) {
             if (poll.stop(t, double(done) / ready.size())) break;
             try {
@@ -934,7 +934,7 @@ void Refiner::rerefine(std::vector<Link>& links, Progress* progress, bool& chang
     linkCount_ = 0;
     std::atomic<size_t> done{0};
     size_t chunks = out.size();
-    parallelFor(chunks, resolveThreads(settings_.threads), 1, [&](size_t b, size_t e, int t) {
+    parallelForDynamic(chunks, resolveThreads(settings_.threads), 1, [&](size_t b, size_t e, int t) {
         for (size_t c = b; c < e && !poll.cancelled(); ++c) {
             size_t lo = c * 256, hi = std::min(links.size(), lo + 256);
             try {

@@ -1,7 +1,8 @@
-// A fixed, static split of [0, n) over threads: each index is processed by exactly one thread and
-// no result depends on which one, so outputs are bit-identical for any thread count.
+// Splits of [0, n) over threads: each index is processed by exactly one thread and no result depends on
+// which one, so outputs are bit-identical for any thread count.
 #pragma once
 #include <algorithm>
+#include <atomic>
 #include <exception>
 #include <thread>
 #include <vector>
@@ -31,6 +32,36 @@ void parallelFor(size_t n, int threads, size_t grain, F&& body) {
                     body(b, std::min(n, b + grain), t);
             } catch (...) {
                 errors[t] = std::current_exception();
+            }
+        });
+    for (auto& th : pool) th.join();
+    for (auto& e : errors)
+        if (e) std::rethrow_exception(e);
+}
+
+// As parallelFor, but each thread takes the next block when it is done with its last: for a few hundred
+// items whose costs differ by orders of magnitude (the refinement's root pairs), where a fixed deal left one
+// core idle while the other finished its share. Which thread takes a block varies from run to run, so the
+// body must write only what belongs to its indices (per-index outputs), never per-thread sums.
+template <class F>
+void parallelForDynamic(size_t n, int threads, size_t grain, F&& body) {
+    threads = std::max(1, threads);
+    grain = std::max<size_t>(1, grain);
+    if (threads == 1 || n <= grain) {
+        body(size_t(0), n, 0);
+        return;
+    }
+    std::atomic<size_t> next{0};
+    std::vector<std::thread> pool;
+    std::vector<std::exception_ptr> errors(threads);
+    for (int t = 0; t < threads; ++t)
+        pool.emplace_back([&, t] {
+            try {
+                for (size_t b = next.fetch_add(grain); b < n; b = next.fetch_add(grain))
+                    body(b, std::min(n, b + grain), t);
+            } catch (...) {
+                errors[t] = std::current_exception();
+                next = n;  // the others stop at their next block
             }
         });
     for (auto& th : pool) th.join();
