@@ -21,7 +21,8 @@ grows with the scene (0.13 m at 1k polygons, 0.96 m at 100k). --min-size-m holds
 
 Outputs: a markdown table on stdout, --json (the runs, settings, machine, commit) and --plot: log-log solve
 time against polygons with the least-squares exponent over the solved sizes from --fit-from (5k) up, the
-target (100k polygons in 20 s) and an exponent-1.2 reference line through it; and peak memory beside it.
+target (100k polygons in 20 s) and an exponent-1.2 reference line through it; and peak memory beside it, with
+its target (4 GB at 200k polygons). --replot JSON redraws a saved run's figure.
 """
 import argparse
 import datetime
@@ -40,6 +41,7 @@ REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 
 TARGET_POLYGONS, TARGET_SECONDS, TARGET_EXPONENT = 100_000, 20.0, 1.2
+TARGET_MEMORY_POLYGONS, TARGET_MEMORY_MIB = 200_000, 4096.0  # issue 14: peak memory <= 4 GB at 200k polygons
 DEFAULT_MIN_SIZE = 0.01               # the solver's default relative min_size (native/python/API.md)
 RESULT_MARK = "SCALING-RESULT "        # the worker's last stdout line; anything the module prints is ignored
 
@@ -65,6 +67,8 @@ def parse_args(argv=None):
     ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
                     help="what the fit and the plot use: the solver's own wall clock, or the CPU seconds of the "
                          "solve call (all threads; steadier on a machine other jobs load)")
+    ap.add_argument("--replot", default=None,
+                    help="redraw --plot from a JSON this script wrote (no solving)")
     ap.add_argument("--include", default=None,
                     help="a JSON file of an earlier run whose solved sizes (not run again here) join the table, fit "
                          "and plot, marked as included (e.g. docs/scaling_results_200k.json)")
@@ -394,6 +398,8 @@ def plot(rows, fit, path, title, clock="wall"):
             if pts:
                 axm.loglog([r["polygons"] for r in pts], [r["peak_mib"] for r in pts], style, markersize=8,
                            label=status)
+    axm.loglog([TARGET_MEMORY_POLYGONS], [TARGET_MEMORY_MIB], "*", color="C2", markersize=16,
+               label=f"target: at most {TARGET_MEMORY_MIB / 1024:g} GB at {TARGET_MEMORY_POLYGONS // 1000}k polygons")
     axm.set_xlim(x_lo, x_hi)
     axm.set_xlabel("polygons")
     axm.set_ylabel("MiB")
@@ -423,6 +429,17 @@ def main():
     args.build = os.path.abspath(args.build)
     if args.worker is not None:
         return worker(args)
+    if args.replot:
+        with open(args.replot) as f:
+            saved = json.load(f)
+        meta = saved["meta"]
+        commit = meta.get("commit") or "?"
+        title = "Penumbra scaling, scalable office scene" + (f" — {meta['label']}" if meta.get("label") else "") + \
+                f"\nsettings {json.dumps(meta.get('settings'))}" + \
+                (f", min size {meta['min_size_m']} m" if meta.get("min_size_m") is not None else ", default min_size") + \
+                f", {meta.get('cpus', '?')} cores, commit {commit[:8]}{' (dirty)' if meta.get('dirty') else ''}"
+        plot(saved["runs"], saved["fit"], args.plot, title, meta.get("clock", "wall"))
+        return 0
     _native = check_settings(args)
     rows, skip = [], None
     for n in args.sizes:
