@@ -38,8 +38,9 @@ void ClusterFaceVisibility::finish() {
     size_t w = 0;
     for (uint32_t i : byOffset) {
         Entry& e = index_[i];
-        std::copy(shares_.begin() + ptrdiff_t(e.offset), shares_.begin() + ptrdiff_t(e.offset + e.count),
-                  shares_.begin() + ptrdiff_t(w));
+        if (w != e.offset)  // w < offset: std::copy may move a range down over itself, not onto its own start
+            std::copy(shares_.begin() + ptrdiff_t(e.offset), shares_.begin() + ptrdiff_t(e.offset + e.count),
+                      shares_.begin() + ptrdiff_t(w));
         e.offset = uint32_t(w);
         w += e.count;
     }
