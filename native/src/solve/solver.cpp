@@ -12,8 +12,9 @@ namespace penumbra {
 void Solver::prepareClusters(const std::vector<Link>& links) {
     clusterLinks_.assign(h_.clusters().size(), {0, 0});
     // Links into clusters sort first (clusters are negative nodes): only those need a face share.
-    size_t intoClusters = 0;
-    while (intoClusters < links.size() && isClusterNode(links[intoClusters].receiver)) ++intoClusters;
+    size_t intoClusters = size_t(std::partition_point(links.begin(), links.end(), [](const Link& l) {
+                                     return isClusterNode(l.receiver);
+                                 }) - links.begin());
     linkFaceV_.assign(intoClusters, nullptr);
     linkFaceV_.shrink_to_fit();
     const ClusterTree& ct = h_.clusters();

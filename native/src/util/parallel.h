@@ -14,6 +14,24 @@ inline int resolveThreads(int requested) {
     return requested > 0 ? requested : std::max(1, hw);
 }
 
+// Runs work(t) on threads t = 0 .. threads-1 and rethrows the first error once all have joined.
+template <class W>
+void runThreads(int threads, W&& work) {
+    std::vector<std::thread> pool;
+    std::vector<std::exception_ptr> errors(threads);
+    for (int t = 0; t < threads; ++t)
+        pool.emplace_back([&, t] {
+            try {
+                work(t);
+            } catch (...) {
+                errors[t] = std::current_exception();
+            }
+        });
+    for (auto& th : pool) th.join();
+    for (auto& e : errors)
+        if (e) std::rethrow_exception(e);
+}
+
 // body(begin, end, threadIndex). Blocks of `grain` indices are dealt round-robin so uneven work
 // (links near the light refine deeper) spreads over threads.
 template <class F>
@@ -23,20 +41,9 @@ void parallelFor(size_t n, int threads, size_t grain, F&& body) {
         body(size_t(0), n, 0);
         return;
     }
-    std::vector<std::thread> pool;
-    std::vector<std::exception_ptr> errors(threads);
-    for (int t = 0; t < threads; ++t)
-        pool.emplace_back([&, t] {
-            try {
-                for (size_t b = size_t(t) * grain; b < n; b += size_t(threads) * grain)
-                    body(b, std::min(n, b + grain), t);
-            } catch (...) {
-                errors[t] = std::current_exception();
-            }
-        });
-    for (auto& th : pool) th.join();
-    for (auto& e : errors)
-        if (e) std::rethrow_exception(e);
+    runThreads(threads, [&](int t) {
+        for (size_t b = size_t(t) * grain; b < n; b += size_t(threads) * grain) body(b, std::min(n, b + grain), t);
+    });
 }
 
 // As parallelFor, but each thread takes the next block when it is done with its last: for a few hundred
@@ -52,21 +59,14 @@ void parallelForDynamic(size_t n, int threads, size_t grain, F&& body) {
         return;
     }
     std::atomic<size_t> next{0};
-    std::vector<std::thread> pool;
-    std::vector<std::exception_ptr> errors(threads);
-    for (int t = 0; t < threads; ++t)
-        pool.emplace_back([&, t] {
-            try {
-                for (size_t b = next.fetch_add(grain); b < n; b = next.fetch_add(grain))
-                    body(b, std::min(n, b + grain), t);
-            } catch (...) {
-                errors[t] = std::current_exception();
-                next = n;  // the others stop at their next block
-            }
-        });
-    for (auto& th : pool) th.join();
-    for (auto& e : errors)
-        if (e) std::rethrow_exception(e);
+    runThreads(threads, [&](int t) {
+        try {
+            for (size_t b = next.fetch_add(grain); b < n; b = next.fetch_add(grain)) body(b, std::min(n, b + grain), t);
+        } catch (...) {
+            next = n;  // the others stop at their next block
+            throw;
+        }
+    });
 }
 
 }  // namespace penumbra
