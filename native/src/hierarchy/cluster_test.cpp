@@ -193,5 +193,46 @@ TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     EXPECT_EQ(fluxBound(h, clusterNode(box), ct[box].box), HUGE_VAL);
 }
 
+TEST(ClusterTransfer, FarFieldLightEqualsFluxAtOverItsBallAndRefusesWhatItCannotHold) {
+    auto t = clutteredRoom();
+    Scene sc = buildScene(t.input());
+    Hierarchy h(sc, size_t(-1), true);
+    // Colours that differ by face, so a wrong class in the sum shows in every channel.
+    for (size_t i = 0; i < h.numRoots(); ++i) h[i].B = Rgb{1.0 + (i % 3), 2.0 + (i % 5), 0.5 + (i % 7)};
+    h.updateClusterFlux();
+    const ClusterTree& ct = h.clusters();
+    int box = -1;
+    for (size_t c = 0; c < ct.size(); ++c)
+        if (ct[int(c)].end - ct[int(c)].begin == 6 && sc.polygons[ct.polygons()[ct[int(c)].begin]].object == 2)
+            box = int(c);
+    ASSERT_GE(box, 0);
+    const Cluster& b = ct[box];
+    // A ball up in a corner, seen from the box at an angle where every face is turned toward or away
+    // from all of it: at() is fluxAt, to rounding, at points spread over the ball and every normal.
+    Vec3 centre = b.center + Vec3{2.1, 2.9, 2.3};
+    double radius = 0.3;
+    FarFieldLight far;
+    ASSERT_TRUE(farFieldLight(h, clusterNode(box), centre, radius, far));
+    int lit = 0;
+    for (int i = 0; i < 200; ++i) {
+        // Fibonacci directions on the sphere, at radii over the whole ball (to its surface).
+        double z = 1.0 - (i + 0.5) / 100.0, s = std::sqrt(std::max(0.0, 1.0 - z * z)), a = 2.39996323 * i;
+        Vec3 y = centre + Vec3{s * std::cos(a), s * std::sin(a), z} * (radius * ((i % 10) + 1) / 10.0);
+        Vec3 n = normalize(Vec3{-std::cos(2.4 * i), -std::sin(2.4 * i), (i % 2 ? -1.0 : 1.0) * std::fabs(z)});
+        ASSERT_LE(length(y - centre), radius * (1 + 1e-12));
+        Rgb want = fluxAt(h, clusterNode(box), y, &n), got = far.at(y, &n);
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], want[c], 1e-12 * (1 + std::fabs(want[c]))) << i;
+        lit += want.x > 0;
+        Rgb want0 = fluxAt(h, clusterNode(box), y, nullptr), got0 = far.at(y, nullptr);
+        EXPECT_NEAR(got0.y, want0.y, 1e-12 * (1 + want0.y)) << i;
+    }
+    EXPECT_GT(lit, 20);  // the comparison saw light, not only zeros
+    // A ball level with the box's top: the top's class turns toward part of it only.
+    EXPECT_FALSE(farFieldLight(h, clusterNode(box), Vec3{b.center.x + 3, b.center.y, b.box.hi.z}, 0.3, far));
+    // A ball reaching into the box's near field, and one holding the box's centre.
+    EXPECT_FALSE(farFieldLight(h, clusterNode(box), b.center + Vec3{1.0, 1.0, 1.0}, 1.5, far));
+    EXPECT_FALSE(farFieldLight(h, clusterNode(box), b.center, 0.1, far));
+}
+
 }  // namespace
 }  // namespace penumbra

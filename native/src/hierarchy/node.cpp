@@ -129,6 +129,44 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     return clusterFluxAt(h, clusterIndex(source), y, n);
 }
 
+bool farFieldLight(const Hierarchy& h, int clusterSource, const Vec3& ballCenter, double ballRadius,
+                   FarFieldLight& out) {
+    const ClusterTree& ct = h.clusters();
+    const Cluster& c = ct[clusterIndex(clusterSource)];
+    Vec3 d = ballCenter - c.center;
+    double dist = length(d);
+    // Every point of the ball is at least dist - ballRadius from the centre; the margins keep rounding
+    // from deciding a point that fluxAt would put on the other side.
+    if (!(dist > ballRadius) || c.radius > kFarField * (dist - ballRadius) * (1 - 1e-9)) return false;
+    Vec3 u = d / dist;
+    // The directions to the ball's points lie within asin(ballRadius / dist) of u.
+    double sinCone = ballRadius / dist + 1e-9;
+    out.center = c.center;
+    out.rows[0] = out.rows[1] = out.rows[2] = Vec3{};
+    for (int m = c.classBegin; m < c.classEnd; ++m) {
+        const Vec3& nm = ct.classNormal()[size_t(m)];
+        double s = dot(nm, u);
+        if (s <= -sinCone) continue;  // turned away from the whole ball
+        if (s < sinCone) return false;
+        const Rgb& f = ct.classFlux()[size_t(m)];
+        out.rows[0] += nm * f.x;
+        out.rows[1] += nm * f.y;
+        out.rows[2] += nm * f.z;
+    }
+    return true;
+}
+
+Rgb FarFieldLight::at(const Vec3& y, const Vec3* n) const {
+    Vec3 d = y - center;
+    double r2 = length2(d);
+    if (r2 <= 0) return {};
+    double r = std::sqrt(r2);
+    Vec3 u = d / r;
+    double cy = n ? -dot(*n, u) : 1.0;
+    if (cy <= 0) return {};
+    return Rgb{dot(rows[0], u), dot(rows[1], u), dot(rows[2], u)} * (cy / (M_PI * r2));
+}
+
 double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
     Bounds sb = nodeBox(h, source);
     double dmin = boxDistance(rb, sb);

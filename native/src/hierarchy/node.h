@@ -20,6 +20,20 @@ uint64_t nodeKey(const Hierarchy& h, int node);
 // shares among its faces by their own cosines.
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n);
 
+// A cluster source's light over a ball of receiving points that all lie in its far field, as one linear
+// map of the direction: where every normal class of its faces is turned toward the whole ball or away
+// from all of it, the sum over classes of flux_m max(0, n_m . u) is (sum over the classes turned toward
+// it of flux_m n_m^T) u, the same sum as fluxAt's in another order. at() is then fluxAt at any y in the
+// ball for the cost of one class.
+struct FarFieldLight {
+    Vec3 center;       // the source cluster's
+    Vec3 rows[3];      // per colour channel: sum of flux_m n_m over the classes turned toward the ball
+    Rgb at(const Vec3& y, const Vec3* n) const;
+};
+// False where the ball is not wholly in the source's far field or a class turns toward part of it only.
+bool farFieldLight(const Hierarchy& h, int clusterSource, const Vec3& ballCenter, double ballRadius,
+                   FarFieldLight& out);
+
 // Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`, at
 // distance dmin or more: cosines are widened by the angular radius of the other end, distances
 // shrunk to dmin. Infinite when the boxes touch.

@@ -62,7 +62,8 @@ private:
     Hierarchy& h_;
     Settings settings_;
     void prepareClusters(const std::vector<Link>& links);
-    // Irradiance each polygon takes from the links of the clusters above it.
+    // Irradiance each polygon takes from the links of the clusters above it, into `down` (one per root,
+    // zeroed by the caller: polygons outside the cluster tree are left alone).
     void distributeClusters(const std::vector<Link>& links, std::vector<Rgb>& down) const;
 
     std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
@@ -78,7 +79,7 @@ private:
     const std::vector<Rgb>* lightE_ = nullptr;
     const ClusterFaceVisibility* faceVis_ = nullptr;
     std::vector<const float*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
-    std::vector<int> polyPos_;             // polygon -> its index in the cluster tree's order
+    std::vector<int> clusterDepth_;        // steps from the root cluster
 };
 
 }  // namespace penumbra
