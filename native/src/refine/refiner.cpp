@@ -30,8 +30,8 @@ constexpr int kFaceRays = 4;
 
 PENUMBRA_COUNTER(kRaysBatched, "rays_batched");  // of which: in rounds, for partly seen links at min_size
 PENUMBRA_COUNTER(kRaysCluster, "rays_cluster");  // of which: for links with a cluster at either end
-PENUMBRA_COUNTER(kShaftsClear, "shafts_clear");
-PENUMBRA_COUNTER(kSharedClusterLinks, "shared_cluster_links");  // partly seen, shared by the faces' own shares  // links found fully visible by shaft culling, no rays cast
+PENUMBRA_COUNTER(kShaftsClear, "shafts_clear");  // uneven sources proven wholly seen (sourceDeviationError)
+PENUMBRA_COUNTER(kSharedClusterLinks, "shared_cluster_links");  // partly seen, shared by the faces' own shares
 
 // Deterministic per-link random numbers: the sample pattern of a link depends only on the identity
 // of its two elements, never on thread timing or allocation order.
@@ -273,7 +273,9 @@ double Refiner::sourceDeviationError(const Link& l) const {
     const Scene& sc = h_.scene();
     RayCaster::HalfSpace planes[2] = {lowestPlane(r, sc.polygons[r.polygon].normal),
                                       lowestPlane(s, sc.polygons[s.polygon].normal)};
-    return rays_.shaftIsClear(rb, sb, r.polygon, s.polygon, planes, 2, 0.5 * lift_) ? 0.0 : e;
+    if (!rays_.shaftIsClear(rb, sb, r.polygon, s.polygon, planes, 2, 0.5 * lift_)) return e;
+    counters_.add(kShaftsClear);
+    return 0.0;
 }
 
 bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
@@ -359,25 +361,16 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     const Scene& sc = h_.scene();
     const Vec3 nr = sc.polygons[r.polygon].normal * lift_;
     const Vec3 ns = sc.polygons[s.polygon].normal * lift_;
-    // Ray end points are lifted off the surfaces, so the boxes grow by the lift before culling.
-    Bounds rb, sb;
-    Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
-    for (int k = 0; k < r.n; ++k) { rb.extend(r.v[k] - pad); rb.extend(r.v[k] + pad); }
-    for (int k = 0; k < s.n; ++k) { sb.extend(s.v[k] - pad); sb.extend(s.v[k] + pad); }
     // A light whose Cast Shadow is off is seen whole (kCastsNoShadow).
     if (!sc.polygons[size_t(s.polygon)].castsShadow) {
         l.V = 1;
         return;
     }
-    // The rays that count start lift_ in front of the receiver and end lift_ in front of the source
-    // (see below), so nothing lying in or behind either plane can block them.
-    RayCaster::HalfSpace planes[2] = {lowestPlane(r, sc.polygons[r.polygon].normal),
-                                      lowestPlane(s, sc.polygons[s.polygon].normal)};
-    if (rays_.shaftIsClear(rb, sb, r.polygon, s.polygon, planes, 2, 0.5 * lift_)) {
-        counters_.add(kShaftsClear);
-        l.V = 1;
-        return;
-    }
+    // No shaft test first: where the shaft is clear the rays all get through too (V = 1), and in a
+    // furnished room it seldom is while its search of the box tree costs more than Embree's rays (10k office
+    // at epsilon 0.002: 6 % of the links were proven clear; without the test 3 % more rays, 11 % less CPU;
+    // a closed box of 13 faces, 60 % more rays for the same CPU). sourceDeviationError keeps its shaft:
+    // there a clear shaft proves what passing rays cannot.
     // batches > 0: that many rounds of 16 x 16 rays, the sample pattern carried on from round to round.
     int m = batches > 0 ? 16 : strata_, n = std::min(m * m, 256);
     // With a stopping rule the first round is a quarter round: most links need no more.
@@ -755,18 +748,10 @@ bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb
     // No face of one end turned toward the other: nothing flows, no link.
     if (!sampleNode(ri, nodeCenter(h_, si), true, seed, n, from)) return false;
     if (!sampleNode(si, nodeCenter(h_, ri), false, seed * 31 + 7, n, to)) return false;
-    Bounds rpad = rb, spad = sb;
-    Vec3 pad{2 * lift_, 2 * lift_, 2 * lift_};
-    rpad.extend(rb.lo - pad); rpad.extend(rb.hi + pad);
-    spad.extend(sb.lo - pad); spad.extend(sb.hi + pad);
-    if (rays_.shaftIsClear(rpad, spad, -1, -1)) {
-        counters_.add(kShaftsClear);
-        l.V = 1;
-    } else {
-        l.V = float(rays_.unoccludedFraction(from, to, n, !emits(si)));
-        counters_.add(kRays, size_t(n));
-        counters_.add(kRaysCluster, size_t(n));
-    }
+    // A shaft between two clusters holds their own faces, so it was never found clear (rays only).
+    l.V = float(rays_.unoccludedFraction(from, to, n, !emits(si)));
+    counters_.add(kRays, size_t(n));
+    counters_.add(kRaysCluster, size_t(n));
     return true;
 }
 
