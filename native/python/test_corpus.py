@@ -245,6 +245,22 @@ def test_furnace_at_albedo_099_converges_to_e_over_one_minus_rho():
     np.testing.assert_allclose(got, expect, rtol=1e-4)
 
 
+def test_passes_ending_early_still_solve_to_the_tolerance():
+    # The solves before the last refinement pass stop at ten times the tolerance (penumbra.cpp); when the
+    # passes end early (nothing left to re-refine: a uniform furnace box) the last loose solve must still be
+    # finished at the tolerance itself.
+    rho, emit, tol = 0.99, 1.0, 1e-6
+    args = furnace(rho, emit).arrays()
+    sol = _native.solve(*args, settings={"max_iterations": 20000, "tolerance": tol, "epsilon": 0.01,
+                                         "min_size": 0.05, "refine_passes": 3})
+    rep = sol.report
+    assert rep["refine_passes"] < 3  # the early end this test is about
+    assert rep["converged"] and rep["residual"] < tol
+    pts, nrm = corpus.face_samples(args)
+    expect = emit * rho / (1 - rho) / math.pi
+    np.testing.assert_allclose(sol.radiance(pts, nrm), expect, rtol=20 * tol)
+
+
 @pytest.mark.parametrize("power", [1e-9, 1e9])
 def test_radiance_is_linear_in_emission(power):
     ref_args = corpus.cube_on_floor(0.0, lamp_emit=20.0).arrays()

@@ -157,6 +157,13 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     attachTextures();
     attachLights();
     rep.seconds["refine"] = clock.lap();
+    // The solves before the last refinement pass only feed the re-judging of the links, whose decisions
+    // a 0.1 % change of B does not move: they stop at kPassTolerance times the tolerance, and the last
+    // solve at the tolerance itself. 10k office at epsilon 0.002: 22 -> 17 sweeps, the solve stage 3.7 ->
+    // 2.2 s, radiance 0.023 % RMS apart; against a fine solve of the 1k office 4.663 % either way.
+    constexpr double kPassTolerance = 10;
+    bool loose = settings.refinePasses > 1;
+    if (loose) solver.setTolerance(std::min(0.5, settings.tolerance * kPassTolerance));
     SolveResult res = solver.solve(links, progress);
     rep.seconds["solve"] = clock.lap();
     int passes = 1, totalIterations = res.iterations;
@@ -169,12 +176,22 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();
         if (!changed) break;  // no element was split: the complete textures still fit the leaves
+        if (loose && pass == settings.refinePasses - 1) {
+            solver.setTolerance(settings.tolerance);
+            loose = false;
+        }
         attachTextures();
         attachLights();
         rep.seconds["refine"] += clock.lap();
         res = solver.solve(links, progress);
         totalIterations += res.iterations;
         passes = pass + 1;
+        rep.seconds["solve"] += clock.lap();
+    }
+    if (loose) {  // the passes ended early, after a loose solve: finish it at the tolerance
+        solver.setTolerance(settings.tolerance);
+        res = solver.solve(links, progress);
+        totalIterations += res.iterations;
         rep.seconds["solve"] += clock.lap();
     }
     counters.add(kRefinePasses, size_t(passes));

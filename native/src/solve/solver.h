@@ -44,6 +44,7 @@ public:
     // gives plain Jacobi sweeps, which the tests hold the mixed solve against.
     static constexpr int kMaxMixing = 5;
     void setMixing(int depth) { mixing_ = std::clamp(depth, 0, kMaxMixing); }
+    void setTolerance(double t) { settings_.tolerance = t; }
 
     // The irradiance each element's links bring straight from the emitters (a gather with every
     // radiosity set to its emission, pushed down to the leaves), as linked (`shadowed`) and with every

@@ -135,38 +135,39 @@ TestScene cardRoom() {
 
 // Stop 29: links see their sources through rays only (no shaft test first: where a shaft is clear the rays
 // all get through too), so rays grew and shafts_clear now counts only sourceDeviationError's proofs; the
-// hashes did not move.
+// hashes did not move. Then the solves before the last pass stop at ten times the tolerance (penumbra.cpp,
+// kPassTolerance): iterations 17 -> 14, a few decisions of the later passes move, all re-recorded.
 // The block resting on the floor: before issue 12 its pair was refused as too coarse; contact sub-blockers
 // bring E_rr under e_max, and the 7 slabs at 512 texels then exceed t_max at the pinned FFT cost, so the pair
 // is refused as too slow and the output is unchanged (same hashes, same counts but the refusal's reason).
 TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
-    expectGolden(testing::litRoom(), goldenSettings(), {"b5fcef74987ff758", "ff1619a8d93469c0",
-                    "polygons=13 elements=35625 leaves=26722 links=175073 rays=4347904 shafts_clear=6617 "
+    expectGolden(testing::litRoom(), goldenSettings(), {"531cbbda60987f1a", "52c33d32611fa96c",
+                    "polygons=13 elements=35621 leaves=26719 links=175068 rays=4347408 shafts_clear=6625 "
                     "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
-                    "refused.too_slow=0 gather_emitters=1 iterations=17 refine_passes=3 max_error=0x0p+0 "
-                    "residual=0x1.a9aabeb31a3b6p-15 converged=1 warnings=0"});
+                    "refused.too_slow=0 gather_emitters=1 iterations=14 refine_passes=3 max_error=0x0p+0 "
+                    "residual=0x1.07f16648da44fp-14 converged=1 warnings=0"});
 }
 
 TEST(Golden, CardRoomWithConvolutionIsBitIdenticalToTheRecordedRun) {
-    expectGolden(cardRoom(), goldenSettings(), {"10bf6852b5549e3a", "671cfe9446f20330",
-                    "polygons=8 elements=29396 leaves=22049 links=162627 rays=2894864 shafts_clear=2882 "
+    expectGolden(cardRoom(), goldenSettings(), {"0a67cc321fe778db", "650c48e986e95d64",
+                    "polygons=8 elements=29396 leaves=22049 links=162621 rays=2894720 shafts_clear=2882 "
                     "clusters=1 cluster_links=0 convolution_links=1 convolution_tried=2 convolution_texels=147456 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=0 "
-                    "refused.too_slow=0 gather_emitters=1 iterations=15 refine_passes=3 max_error=0x0p+0 "
-                    "residual=0x1.0bad0db36fce6p-15 converged=1 warnings=0"});
+                    "refused.too_slow=0 gather_emitters=1 iterations=14 refine_passes=3 max_error=0x0p+0 "
+                    "residual=0x1.9d7293056a162p-15 converged=1 warnings=0"});
 }
 
 TEST(Golden, LitRoomWithoutFinalGatherOrClustersIsBitIdenticalToTheRecordedRun) {
     Settings s = goldenSettings();
     s.finalGather = false;
     s.clustering = false;
-    expectGolden(testing::litRoom(), s, {"2e848d019e74c278", "6ad3f63865ec452c",
-                    "polygons=13 elements=35589 leaves=26695 links=173163 rays=4308176 shafts_clear=6454 "
+    expectGolden(testing::litRoom(), s, {"5b66981cd1ebc2a5", "d616ce4dfbb4bb3f",
+                    "polygons=13 elements=35589 leaves=26695 links=173131 rays=4307408 shafts_clear=6452 "
                     "clusters=0 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
-                    "refused.too_slow=0 gather_emitters=0 iterations=17 refine_passes=3 max_error=0x0p+0 "
-                    "residual=0x1.4559d98a8a13dp-15 converged=1 warnings=0"});
+                    "refused.too_slow=0 gather_emitters=0 iterations=14 refine_passes=3 max_error=0x0p+0 "
+                    "residual=0x1.35195b85b202p-14 converged=1 warnings=0"});
 }
 
 }  // namespace
