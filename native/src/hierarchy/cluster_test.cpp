@@ -163,6 +163,15 @@ TEST(ClusterTree, PlanarGroupsMakeATriangulatedTableTopOneClusterAndKeepObjectsW
     }
 }
 
+// The cluster holding clutteredRoom's box of object 2 (its six faces), or -1.
+int firstBoxCluster(const Scene& sc, const ClusterTree& ct) {
+    int box = -1;
+    for (size_t c = 0; c < ct.size(); ++c)
+        if (ct[int(c)].end - ct[int(c)].begin == 6 && sc.polygons[ct.polygons()[ct[int(c)].begin]].object == 2)
+            box = int(c);
+    return box;
+}
+
 TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     auto t = clutteredRoom();
     Scene sc = buildScene(t.input());
@@ -172,10 +181,7 @@ TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     const ClusterTree& ct = h.clusters();
     // A box's cluster seen from a point on the far wall: in the far field the alpha transfer (by
     // normal class, from the centre) is the sum over faces (each from its own centre).
-    int box = -1;
-    for (size_t c = 0; c < ct.size(); ++c)
-        if (ct[int(c)].end - ct[int(c)].begin == 6 && sc.polygons[ct.polygons()[ct[int(c)].begin]].object == 2)
-            box = int(c);
+    int box = firstBoxCluster(sc, ct);
     ASSERT_GE(box, 0);
     Vec3 y{2.9, 3.9, 2.5}, n = normalize(Vec3{-1, -1, -0.5});
     Rgb sum;
@@ -201,10 +207,7 @@ TEST(ClusterTransfer, FarFieldLightEqualsFluxAtOverItsBallAndRefusesWhatItCannot
     for (size_t i = 0; i < h.numRoots(); ++i) h[i].B = Rgb{1.0 + (i % 3), 2.0 + (i % 5), 0.5 + (i % 7)};
     h.updateClusterFlux();
     const ClusterTree& ct = h.clusters();
-    int box = -1;
-    for (size_t c = 0; c < ct.size(); ++c)
-        if (ct[int(c)].end - ct[int(c)].begin == 6 && sc.polygons[ct.polygons()[ct[int(c)].begin]].object == 2)
-            box = int(c);
+    int box = firstBoxCluster(sc, ct);
     ASSERT_GE(box, 0);
     const Cluster& b = ct[box];
     // A ball up in a corner, seen from the box at an angle where every face is turned toward or away
