@@ -534,7 +534,7 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     if (ri != si && !overlaps(rgrown, sb) && sourceFar &&
         receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
         Link l;
-        if (estimateCluster(ri, si, rb, sb, l)) {
+        if (estimateCluster(ri, si, l)) {
             // A transfer that no ray gets through is kept with V = 0: it adds nothing to the solve, but
             // the final gather reads the unoccluded light of every transfer as the measure of visibility.
             if (l.V <= 0) {
@@ -738,7 +738,7 @@ bool Refiner::facesToward(int node, const Bounds& other, bool receiver) const {
     return false;
 }
 
-bool Refiner::estimateCluster(int ri, int si, const Bounds& rb, const Bounds& sb, Link& l) {
+bool Refiner::estimateCluster(int ri, int si, Link& l) {
     l.receiver = ri;
     l.source = si;
     l.Fmean = l.Fspread = 0;  // cluster transfers are evaluated from the faces at gather time

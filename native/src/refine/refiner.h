@@ -62,7 +62,7 @@ private:
     void refineCluster(int r, int s, std::vector<Link>& out, std::vector<std::pair<int, int>>* defer);
     // Visibility of a cluster link from rays between faces of both ends (V may be 0); false when no
     // face of one end is turned toward the other.
-    bool estimateCluster(int r, int s, const Bounds& rb, const Bounds& sb, Link& l);
+    bool estimateCluster(int r, int s, Link& l);
     // Whether some face of a cluster (any element counts) has part of the box `other` in front of it.
     bool facesToward(int node, const Bounds& other, bool receiver) const;
     // Points on the faces of a node that look toward `toward`, spread by projected area; false when
