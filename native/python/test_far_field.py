@@ -1,5 +1,5 @@
 """far_field (issue 14): cluster sources linked whole up to half their distance (0.5) instead of a fifth (0.2,
-the default) give the same light within 0.5 % on the Cornell box and the office. Measured: the Cornell box at the
+the default before stop 30, now 0.3) give the same light within 0.5 % on the Cornell box and the office. Measured: the Cornell box at the
 default epsilon 0.35 % RMS, 0.14 % in the mean; the office 0.33 % and 0.07 % at the default epsilon, 0.44 % and 0.15 %
 at epsilon 0.0005 (run here, for half the time), 0.57 % and 0.15 % at 0.002. The office takes fewer links (482k ->
 441k at 0.0005; 2.37M -> 0.97M for the 10k office at 0.002); the Cornell box, too small for its clusters to be far
