@@ -1,5 +1,6 @@
-"""far_field (issue 14): cluster sources linked whole up to half their distance (0.5) instead of a fifth (0.2,
-the default before stop 30, now 0.3) give the same light within 0.5 % on the Cornell box and the office. Measured: the Cornell box at the
+"""far_field (issue 14): cluster sources linked whole up to half their distance (0.5) or 0.3 of it (the default since
+stop 30) instead of a fifth (0.2, the default before) give the same light within 0.5 % on the Cornell box and the
+office. Measured: the Cornell box at the
 default epsilon 0.35 % RMS, 0.14 % in the mean; the office 0.33 % and 0.07 % at the default epsilon, 0.44 % and 0.15 %
 at epsilon 0.0005 (run here, for half the time), 0.57 % and 0.15 % at 0.002. The office takes fewer links (482k ->
 441k at 0.0005; 2.37M -> 0.97M for the 10k office at 0.002); the Cornell box, too small for its clusters to be far
@@ -75,18 +76,21 @@ def test_far_clusters_give_the_same_light_with_fewer_links(make):
     scene = make()
     pts, nrm = _probe(scene)
     out = {}
-    for far in (0.2, 0.5):
+    for far in (0.2, 0.3, 0.5):
         sol = _native.solve(**scene, settings={"far_field": far, "epsilon": EPSILON[make.__name__],
                                                     "threads": 2})
         rad = np.asarray(sol.radiance(pts, nrm))
         out[far] = (rad[:, :3].mean(axis=1), dict(sol.report))
-    a, b = out[0.2][0], out[0.5][0]
+    a = out[0.2][0]
     mean = a.mean()
-    rms = np.sqrt(np.mean((b - a) ** 2)) / mean
-    shift = abs(b.mean() - mean) / mean
-    print(f"\n{make.__name__}: links {out[0.2][1]['links']} -> {out[0.5][1]['links']}, "
-          f"RMS {100 * rms:.3f} %, mean {100 * shift:.3f} %")
-    assert rms <= TOLERANCE
-    assert shift <= TOLERANCE
-    if make is _office:
-        assert out[0.5][1]["links"] < 0.99 * out[0.2][1]["links"]
+    # 0.3 is the default since stop 30, 0.2 the default before it: the default's answer may not move either.
+    for far in (0.3, 0.5):
+        b = out[far][0]
+        rms = np.sqrt(np.mean((b - a) ** 2)) / mean
+        shift = abs(b.mean() - mean) / mean
+        print(f"\n{make.__name__} at {far}: links {out[0.2][1]['links']} -> {out[far][1]['links']}, "
+              f"RMS {100 * rms:.3f} %, mean {100 * shift:.3f} %")
+        assert rms <= TOLERANCE
+        assert shift <= TOLERANCE
+        if make is _office:
+            assert out[far][1]["links"] < 0.99 * out[0.2][1]["links"]
