@@ -49,35 +49,37 @@ def main(argv=None):
     if missing:
         raise SystemExit(f"frontiers: no results for {missing}")
     fig, axes = plt.subplots(len(scenes), len(METRICS), figsize=(5.5 * len(METRICS), 4 * len(scenes)), squeeze=False)
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
     print("| scene | run | epsilon | seconds | per face | per texel | bias |")
     print("|---|---|---|---|---|---|---|")
     for row, scene in enumerate(scenes):
+        clock = "wall"
         for label, results in runs:
             r = results[scene]
             clock = r.get("clock", "wall")
             pts = sorted(r["penumbra"], key=lambda p: seconds(p, clock))
-            for p in pts:
-                print(f"| {scene} | {label} | {p['epsilon']:g} | {seconds(p, clock):.2f} | {100 * p['face']:.2f} % | "
+            xs = [seconds(p, clock) for p in pts]
+            for p, x in zip(pts, xs):
+                print(f"| {scene} | {label} | {p['epsilon']:g} | {x:.2f} | {100 * p['face']:.2f} % | "
                       f"{100 * p['texel']:.2f} % | {100 * p['bias']:+.2f} % |")
-            for col, (key, name) in enumerate(METRICS):
-                ax = axes[row][col]
-                xs = [seconds(p, clock) for p in pts]
+            for col, (key, _) in enumerate(METRICS):
                 ys = [100 * p[key] for p in pts]
-                line, = ax.plot(xs, ys, "o-", label=label)
+                line, = axes[row][col].plot(xs, ys, "o-", label=label)
                 for p, x, y in zip(pts, xs, ys):
-                    ax.annotate(f"{p['epsilon']:g}", (x, y), fontsize=7, color=line.get_color(),
-                                textcoords="offset points", xytext=(4, 4))
-                ax.set_xscale("log")
-                ax.set_yscale("log")
-                plain = FuncFormatter(lambda v, _: f"{v:g}")
-                for axis in (ax.xaxis, ax.yaxis):
-                    axis.set_major_formatter(plain)
-                    axis.set_minor_formatter(plain)
-                ax.set_title(f"{scene}: error {name} against Cycles")
-                ax.set_xlabel(f"Penumbra bake, {'CPU' if clock == 'cpu' else 'wall'} seconds")
-                ax.set_ylabel("relative RMS error, %")
-                ax.grid(True, which="both", alpha=0.3)
-                ax.legend(fontsize=8)
+                    axes[row][col].annotate(f"{p['epsilon']:g}", (x, y), fontsize=7, color=line.get_color(),
+                                            textcoords="offset points", xytext=(4, 4))
+        for col, (_, name) in enumerate(METRICS):
+            ax = axes[row][col]
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            for axis in (ax.xaxis, ax.yaxis):
+                axis.set_major_formatter(plain)
+                axis.set_minor_formatter(plain)
+            ax.set_title(f"{scene}: error {name} against Cycles")
+            ax.set_xlabel(f"Penumbra bake, {'CPU' if clock == 'cpu' else 'wall'} seconds")
+            ax.set_ylabel("relative RMS error, %")
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
     print(f"frontiers: wrote {args.out}", file=sys.stderr)
