@@ -53,14 +53,18 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 # 4.663 % RMS, bias -0.643 -> -0.646 %.
 # Stop 30: far_field 0.2 -> 0.3 by default (settings.h): links 908310 -> 890626, iterations 16 -> 17, against the fine
 # solve 4.663 -> 4.661 % RMS, bias -0.646 -> -0.607 %.
+# Stop 31: a reflector's cluster links take 4 provisional rays in the first pass and are made again, by light, in the
+# second where their bound then exceeds an eighth of the threshold (refiner.cpp): links 890626 -> 898509, rays
+# 43537833 -> 43550116 (cluster rays 1659257 -> 1297652), iterations 17 -> 16; radiance at the face centres against a
+# fine solve made this stop (eps 5e-5, min_size 0.006, 256 gather rays) 2.003 -> 1.993 % RMS, mean -0.60 -> -0.56 %.
 EXPECTED_COUNTS = {
-    "polygons": 999, "elements": 38675, "leaves": 28916, "links": 890626, "rays": 43537833, "rays_batched": 24539136,
-    "rays_cluster": 1659257, "shafts_clear": 27348, "shared_cluster_links": 20304,
-    "clusters": 291, "cluster_links": 30559, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
+    "polygons": 999, "elements": 38675, "leaves": 28916, "links": 898509, "rays": 43550116, "rays_batched": 24706432,
+    "rays_cluster": 1297652, "shafts_clear": 27544, "shared_cluster_links": 18586,
+    "clusters": 291, "cluster_links": 30208, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
     "convolution_max_error": 0.0,
     "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0},
-    "gather_emitters": 4, "iterations": 17, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
-    "residual": 7.551962758947634e-05, "converged": True, "warnings": 0}
+    "gather_emitters": 4, "iterations": 16, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
+    "residual": 5.815111490920183e-05, "converged": True, "warnings": 0}
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "golden_office.npz")
 RTOL = 1e-5
 

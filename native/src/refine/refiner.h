@@ -34,6 +34,7 @@ public:
 
     // Radiosity error a link can cause on its receiver (W/m^2, max over colour channels).
     double linkError(const Link& l) const;
+    double threshold() const { return threshold_; }  // the radiosity error a link may carry
     // The part of it that comes from a partly hidden source's radiosity varying below it.
     double sourceDeviationError(const Link& l) const;
     // Convolution links made so far, in (receiver, source) order; they stand for whole transfers and
@@ -105,6 +106,7 @@ private:
     std::vector<double> minArea_;  // per scene polygon: no element of it is split at or below this area
     double lift_;  // ray end points are lifted off their surfaces by this much
     int strata_;   // visibility rays = strata_^2
+    bool firstPass_ = false;
     Counters& counters_;
     std::atomic<size_t> linkCount_{0};  // links in the list being built
     size_t settled_ = 0;                 // elements at the start of this pass (0 in the first)

@@ -12,7 +12,8 @@ struct Link {
     int receiver = -1;
     int source = -1;
     float Fmean = 0;   // unoccluded receiver-averaged form factor
-    float Fspread = 0; // max - min of the point form factors over the receiver
+    float Fspread = 0; // max - min of the point form factors over the receiver (a cluster link's: 0, or
+                       // negative while its V is a first pass's provisional estimate, refiner.cpp)
     float V = 1;       // visible fraction of the rays
     // Receiver-averaged form factor times visibility. Computed, not stored: links are the solve's
     // largest array, 20 bytes each instead of 24.

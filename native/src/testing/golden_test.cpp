@@ -140,9 +140,11 @@ TestScene cardRoom() {
 // The block resting on the floor: before issue 12 its pair was refused as too coarse; contact sub-blockers
 // bring E_rr under e_max, and the 7 slabs at 512 texels then exceed t_max at the pinned FFT cost, so the pair
 // is refused as too slow and the output is unchanged (same hashes, same counts but the refusal's reason).
+// Stop 31: a reflector's cluster links take 4 provisional rays in the first pass (refiner.cpp): litRoom's rays
+// 4347408 -> 4347348, hashes unchanged.
 TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
     expectGolden(testing::litRoom(), goldenSettings(), {"531cbbda60987f1a", "52c33d32611fa96c",
-                    "polygons=13 elements=35621 leaves=26719 links=175068 rays=4347408 shafts_clear=6625 "
+                    "polygons=13 elements=35621 leaves=26719 links=175068 rays=4347348 shafts_clear=6625 "
                     "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
                     "refused.too_slow=0 gather_emitters=1 iterations=14 refine_passes=3 max_error=0x0p+0 "
