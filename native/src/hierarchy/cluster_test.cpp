@@ -195,8 +195,20 @@ TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     at.extend(y - Vec3{0.05, 0.05, 0.05});
     at.extend(y + Vec3{0.05, 0.05, 0.05});
     EXPECT_LE(all.z, fluxBound(h, clusterNode(box), at));
-    // Touching boxes have no bound.
-    EXPECT_EQ(fluxBound(h, clusterNode(box), ct[box].box), HUGE_VAL);
+    // Touching boxes: each face's form factor is at most 1, so the bound is finite, at most the sum of
+    // the faces' radiosities, and still above the light at a point on the box's own lit side.
+    double sumB = 0;
+    for (int k = ct[box].begin; k < ct[box].end; ++k) sumB += maxComponent(h[ct.polygons()[k]].B);
+    double touching = fluxBound(h, clusterNode(box), ct[box].box);
+    EXPECT_TRUE(std::isfinite(touching));
+    EXPECT_LE(touching, sumB * (1 + 1e-12));
+    Bounds b = ct[box].box;
+    Vec3 beside{b.hi.x + 1e-3, 0.5 * (b.lo.y + b.hi.y), 0.5 * (b.lo.z + b.hi.z)};
+    Bounds near;
+    near.extend(beside);
+    EXPECT_GT(fluxBound(h, clusterNode(box), near), 0.0);
+    for (Vec3 nn : {Vec3{-1, 0, 0}, Vec3{0, 0, -1}, normalize(Vec3{-1, 0, -1})})
+        EXPECT_LE(fluxAt(h, clusterNode(box), beside, &nn).z, fluxBound(h, clusterNode(box), near));
 }
 
 TEST(ClusterTransfer, FarFieldLightEqualsFluxAtOverItsBallAndRefusesWhatItCannotHold) {

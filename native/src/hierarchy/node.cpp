@@ -174,8 +174,6 @@ Rgb FarFieldLight::at(const Vec3& y, const Vec3* n) const {
 
 double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
     Bounds sb = nodeBox(h, source);
-    double dmin = boxDistance(rb, sb);
-    if (!(dmin > 0)) return HUGE_VAL;
     Vec3 rc = rb.center(), sc = sb.center();
     double rr = 0.5 * length(rb.diagonal()), sr = 0.5 * length(sb.diagonal());
     Vec3 d = rc - sc;
@@ -184,31 +182,37 @@ double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
     // (rr + sr) / r of the centre line: each cosine is widened by that (capped at 1).
     double spread = r > 0 ? (rr + sr) / r : 1.0;
     Vec3 u = r > 0 ? d / r : Vec3{};
-    double sum = 0;
+    // A face's form factor to a point is at most A cos / (pi d^2) at distance d, and at most 1 at any
+    // distance: a face that touches the receiver's box adds its whole radiosity, not an infinity. Each
+    // face at its own distance, not the cluster's nearest: the 20k office at the default epsilon had 6 %
+    // fewer links and took 6 % less time (docs/scaling.md, stop 32).
+    auto formFactorBound = [](double area, double cosine, double dist) {
+        return dist > 0 ? std::min(1.0, area * cosine / (M_PI * dist * dist)) : (cosine > 0 ? 1.0 : 0.0);
+    };
     if (!isClusterNode(source)) {
         const Element& e = h[size_t(source)];
         double cm = std::min(1.0, std::max(0.0, dot(h.scene().polygons[e.polygon].normal, u) + spread));
-        sum = maxComponent(e.B) * e.area * cm;
-    } else {
-        // Face by face, each with its own direction to the receiver: a large cluster's faces see a
-        // nearby receiver from quite different angles, and one widening for all would be loose.
-        const ClusterTree& ct = h.clusters();
-        const Cluster& c = ct[clusterIndex(source)];
-        const Scene& scene = h.scene();
-        for (int k = c.begin; k < c.end; ++k) {
-            int p = ct.polygons()[size_t(k)];
-            const Element& e = h[size_t(p)];
-            double b = maxComponent(e.B);
-            if (b <= 0 || !bouncesLight(scene.polygons[size_t(p)])) continue;
-            Vec3 dj = rc - e.center;
-            double rj = length(dj);
-            double cj = rj > 0 ? std::min(1.0, std::max(0.0, dot(scene.polygons[size_t(p)].normal, dj) / rj +
-                                                                 (rr + std::sqrt(e.area)) / rj))
-                               : 1.0;
-            sum += b * e.area * cj;
-        }
+        return maxComponent(e.B) * formFactorBound(e.area, cm, boxDistance(rb, sb));
     }
-    return sum / (M_PI * dmin * dmin);
+    // Face by face, each with its own direction to the receiver: a large cluster's faces see a
+    // nearby receiver from quite different angles, and one widening for all would be loose.
+    const ClusterTree& ct = h.clusters();
+    const Cluster& c = ct[clusterIndex(source)];
+    const Scene& scene = h.scene();
+    double sum = 0;
+    for (int k = c.begin; k < c.end; ++k) {
+        int p = ct.polygons()[size_t(k)];
+        const Element& e = h[size_t(p)];
+        double b = maxComponent(e.B);
+        if (b <= 0 || !bouncesLight(scene.polygons[size_t(p)])) continue;
+        Vec3 dj = rc - e.center;
+        double rj = length(dj);
+        double cj = rj > 0 ? std::min(1.0, std::max(0.0, dot(scene.polygons[size_t(p)].normal, dj) / rj +
+                                                             (rr + std::sqrt(e.area)) / rj))
+                           : 1.0;
+        sum += b * formFactorBound(e.area, cj, boxDistance(rb, nodeBox(h, p)));
+    }
+    return sum;
 }
 
 }  // namespace penumbra

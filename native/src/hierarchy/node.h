@@ -34,9 +34,9 @@ struct FarFieldLight {
 bool farFieldLight(const Hierarchy& h, int clusterSource, const Vec3& ballCenter, double ballRadius,
                    FarFieldLight& out);
 
-// Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`, at
-// distance dmin or more: cosines are widened by the angular radius of the other end, distances
-// shrunk to dmin. Infinite when the boxes touch.
+// Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`: face by
+// face, cosines widened by the angular radius of the other end, the distance shrunk to the gap between
+// the face's box and rb, and no face's form factor above 1 (so a face touching rb adds its radiosity).
 double fluxBound(const Hierarchy& h, int source, const Bounds& rb);
 
 }  // namespace penumbra
