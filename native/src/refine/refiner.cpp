@@ -534,7 +534,7 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
     // Touching boxes are always split, whatever their bound: there a link's few rays and its faces'
     // kernels at the receiver's centre say little of where the light lands. (Linking the dark ones of
     // the first pass whole only moved the work into the second: the 20k office at the default epsilon
-    // made 12 % fewer links in 13 % more time, docs/scaling.md, stop 32.) Boxes closer
+    // made 1 % fewer links in 5 % more time, docs/scaling.md, stop 32.) Boxes closer
     // than a hundredth of the smaller one count as touching, so that whether a box resting on the floor
     // touches it does not hang on the last bits of float32 input (a scene far from the origin).
     bool openReceiver = false;

@@ -23,7 +23,7 @@ ErrorEstimate estimateError(const Hierarchy& h, const std::vector<Link>& links, 
         if (isClusterNode(l.receiver) || isClusterNode(l.source)) {
             if (l.V <= 0) continue;
             double e = rho * fluxBound(h, l.source, nodeBox(h, l.receiver)) * rms12;
-            e2 = std::isfinite(e) ? e * e : 0.0;
+            e2 = e * e;
         } else {
             const Element& src = h[l.source];
             double B = maxComponent(src.B);
