@@ -64,7 +64,8 @@ EXPECTED_COUNTS = {
     "rays_cluster": 1255389, "shafts_clear": 27540, "shared_cluster_links": 18325,
     "clusters": 291, "cluster_links": 29111, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 122, "convolution_texels": 0,
     "convolution_max_error": 0.0,
-    "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0},
+    "convolution_refused": {"intruder": 0, "invalid": 0, "no_blocker": 3, "too_coarse": 119, "too_slow": 0,
+                            "self_shadow": 0},
     "gather_emitters": 4, "iterations": 16, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
     "residual": 5.835638295110645e-05, "converged": True, "warnings": 0}
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "golden_office.npz")

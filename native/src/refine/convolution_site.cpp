@@ -21,6 +21,7 @@ PENUMBRA_COUNTER(kIntruder, "convolution_refused/intruder");  // an occluder rea
 PENUMBRA_COUNTER(kInvalid, "convolution_refused/invalid");  // depth order or geometry the convolution cannot take
 PENUMBRA_COUNTER(kTooCoarse, "convolution_refused/too_coarse");  // E_rr > e_max
 PENUMBRA_COUNTER(kTooSlow, "convolution_refused/too_slow");      // predicted time > t_max
+PENUMBRA_COUNTER(kSelfShadow, "convolution_refused/self_shadow");  // a cluster receiver shading itself
 
 constexpr int kEmissionImage = 64;  // texels per side of a multi-face source's emission image
 constexpr int kMinTexture = 64;
@@ -35,6 +36,11 @@ constexpr double kFilledShare = 0.9;  // faces filling less of their rectangle a
 // of depth along the source's normal, from 1 up to kMaxBands (doubling) until every band passes.
 constexpr double kSteep = 0.5;
 constexpr int kMaxBands = 32;
+// cluster_receivers: a cluster of faces in several planes is a receiver when it has at most this many faces
+// (the self-shadow test casts rays from every face against its neighbours), each face sampled in
+// kSelfSamples^2 points per triangle toward the source faces' corners and centres.
+constexpr int kMaxClusterReceiverFaces = 256;
+constexpr int kSelfSamples = 4;
 
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
@@ -213,7 +219,8 @@ bool ConvolutionSites::receiverCandidate(int r) const {
     Bounds b;
     if (isClusterNode(r)) {
         const Cluster& c = h_.clusters()[clusterIndex(r)];
-        if (!planar_[size_t(clusterIndex(r))] || !(c.rhoMax > 0)) return false;
+        const bool grouped = settings_.clusterReceivers && c.end - c.begin <= kMaxClusterReceiverFaces;
+        if (!(planar_[size_t(clusterIndex(r))] || grouped) || !(c.rhoMax > 0)) return false;
         b = c.box;
     } else {
         if (size_t(r) >= h_.numRoots()) return false;  // receivers are whole polygons or clusters
@@ -323,7 +330,8 @@ struct ConvolutionSites::Site {
     std::vector<int> faces;      // the source: the sending faces of s turned toward the receiver
     bool reflects = false;       // some of them do not emit (indirect_sources): bounced light
     Bounds rb, fb;               // boxes of the receiver and of the source faces
-    const ScenePolygon* rplane = nullptr;
+    const ScenePolygon* rplane = nullptr;  // the receiver's plane; null for a cluster receiver that is not flat
+    std::vector<int> lit;        // not flat: the receiving faces with the whole source in front of them
     const ScenePolygon* splane = nullptr;
     std::vector<BlockerTriangle> tris;
     std::vector<SourcePart> parts;
@@ -349,6 +357,7 @@ CounterId counterOf(ConvolutionSites::Refusal why) {
     case ConvolutionSites::Refusal::TooCoarse:
     case ConvolutionSites::Refusal::TooWide: return kTooCoarse;
     case ConvolutionSites::Refusal::TooSlow: return kTooSlow;
+    case ConvolutionSites::Refusal::SelfShadow: return kSelfShadow;
     default: return kInvalid;
     }
 }
@@ -394,10 +403,11 @@ ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& sit
     nodePolygons(s, spolys);
     site.rb = nodeBox(h_, r);
     const ScenePolygon& rfirst = sc.polygons[size_t(site.rpolys[0])];
+    const bool flat = !isClusterNode(r) || planar_[size_t(clusterIndex(r))];
     for (int p : spolys) {
         const ScenePolygon& sp = sc.polygons[size_t(p)];
         if (!sendsLight(sp)) continue;
-        bool steep = settings_.wallLinks && std::fabs(dot(sp.normal, rfirst.normal)) < kSteep;
+        bool steep = flat && settings_.wallLinks && std::fabs(dot(sp.normal, rfirst.normal)) < kSteep;
         site.steep = site.steep || steep;
         int side = sideOf(sp, site.rb, tol_);
         // A steep receiver reaching above the lamp's plane takes bands below it (planBands): the lamp does not
@@ -408,11 +418,24 @@ ConvolutionSites::Refusal ConvolutionSites::selectSource(int r, int s, Site& sit
     }
     if (site.faces.empty()) return Refusal::NotASite;
     for (int p : site.faces) site.reflects = site.reflects || !emits(sc.polygons[size_t(p)]);
-    site.rplane = &rfirst;
     for (int p : site.faces) site.fb.extend(polygonBox(sc.polygons[size_t(p)]));
+    site.splane = &sc.polygons[size_t(site.faces[0])];
+    if (!flat) {
+        // Each receiving face has the whole source in front of it (lit through the textures at its own position
+        // and normal) or behind it (unlit); one the source's plane of light cuts would need the texture's
+        // visibility where its own horizon clips the source, which the convolution does not weigh.
+        for (int p : site.rpolys) {
+            const ScenePolygon& q = sc.polygons[size_t(p)];
+            if (!receivesLight(q)) continue;
+            int side = sideOf(q, site.fb, tol_);
+            if (side == 0) return Refusal::NotASite;
+            if (side > 0) site.lit.push_back(p);
+        }
+        return site.lit.empty() ? Refusal::NotASite : Refusal::None;
+    }
+    site.rplane = &rfirst;
     // The source must be wholly in front of the receiver.
     if (sideOf(*site.rplane, site.fb, tol_) <= 0) return Refusal::NotASite;
-    site.splane = &sc.polygons[size_t(site.faces[0])];
     return Refusal::None;
 }
 
@@ -440,12 +463,82 @@ ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
         Bounds qb = shrunk(polygonBox(qp), tol_);
         if (shaft.classify(qb) == Shaft::Outside) continue;
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
-        if (onOrBehind(*site.splane, qp, planeTol_) || onOrBehind(*site.rplane, qp, planeTol_)) continue;
+        if (onOrBehind(*site.splane, qp, planeTol_) || (site.rplane && onOrBehind(*site.rplane, qp, planeTol_)))
+            continue;
         if (overlaps(qb, site.rb) || overlaps(qb, site.fb)) return Refusal::Intruder;
         const Polygon& g = qp.geom;
         for (int k = 1; k + 1 < g.n; ++k) site.tris.push_back({g.v[0], g.v[k], g.v[k + 1]});
     }
-    return site.tris.empty() ? Refusal::NoBlocker : Refusal::None;
+    if (site.tris.empty()) return Refusal::NoBlocker;
+    return !site.rplane && shadowsItself(site) ? Refusal::SelfShadow : Refusal::None;
+}
+
+namespace {
+
+// Whether the open segment (a, b) crosses the triangle (Moller-Trumbore); a and b are strictly inside
+// faces, so a touch at the segment's ends or along the triangle's edges is not a crossing.
+bool segmentCrosses(const Vec3& a, const Vec3& b, const BlockerTriangle& t) {
+    const Vec3 d = b - a, e1 = t[1] - t[0], e2 = t[2] - t[0];
+    const Vec3 pv = cross(d, e2);
+    const double det = dot(e1, pv);
+    if (std::fabs(det) < 1e-30) return false;
+    const double inv = 1 / det;
+    const Vec3 tv = a - t[0];
+    const double u = dot(tv, pv) * inv;
+    if (u <= 0 || u >= 1) return false;
+    const Vec3 qv = cross(tv, e1);
+    const double v = dot(d, qv) * inv;
+    if (v <= 0 || u + v >= 1) return false;
+    const double s = dot(e2, qv) * inv;
+    return s > 1e-9 && s < 1 - 1e-9;
+}
+
+}  // namespace
+
+// Test 3 for a cluster receiver that is not flat (cluster_receivers). The texture holds the blockers outside
+// the receiver only, so a face of the cluster shading another from the source (a monitor on its desk, a table
+// top over its legs) would leak the light it stops: the paper ignores such shadows (§4.1), here they refuse
+// the link and the refiner opens the cluster, whose parts then take links of their own (the paper's advice,
+// §7). Rays from kSelfSamples^2 points per triangle of each lit face to the source faces' corners and centres,
+// against the cluster's other faces that cross the shaft between the face and the source: any hit refuses.
+// Sampled, not a bound: a shadow thinner than the sample spacing can pass, which the texture then misses.
+bool ConvolutionSites::shadowsItself(const Site& site) const {
+    const Scene& sc = h_.scene();
+    std::vector<Vec3> lamp;
+    for (int p : site.faces) {
+        const Polygon& g = sc.polygons[size_t(p)].geom;
+        const Vec3 c = g.centroid();
+        lamp.push_back(c);
+        for (int k = 0; k < g.n; ++k) lamp.push_back(g.v[k] + (c - g.v[k]) * 1e-3);
+    }
+    std::vector<BlockerTriangle> near;
+    for (int f : site.lit) {
+        const Polygon& fg = sc.polygons[size_t(f)].geom;
+        const Shaft shaft(polygonBox(sc.polygons[size_t(f)]), site.fb);
+        near.clear();
+        for (int q : site.rpolys) {
+            const ScenePolygon& qp = sc.polygons[size_t(q)];
+            if (q == f || !(site.reflects ? qp.diffuseVisible : qp.blocksLamps)) continue;
+            if (shaft.classify(polygonBox(qp)) == Shaft::Outside) continue;
+            for (int k = 1; k + 1 < qp.geom.n; ++k) near.push_back({qp.geom.v[0], qp.geom.v[k], qp.geom.v[k + 1]});
+        }
+        if (near.empty()) continue;
+        for (int k = 1; k + 1 < fg.n; ++k) {
+            const Vec3 o = fg.v[0], e1 = fg.v[k] - o, e2 = fg.v[k + 1] - o;
+            // Stratified points of the triangle: in each of the kSelfSamples^2 sub-triangles its centroid.
+            for (int i = 0; i < kSelfSamples; ++i)
+                for (int j = 0; i + j < kSelfSamples; ++j)
+                    for (int flip = 0; flip < 2 && (flip == 0 || i + j + 1 < kSelfSamples); ++flip) {
+                        const double a = (i + (flip ? 2.0 : 1.0) / 3) / kSelfSamples;
+                        const double b = (j + (flip ? 2.0 : 1.0) / 3) / kSelfSamples;
+                        const Vec3 y = o + e1 * a + e2 * b;
+                        for (const Vec3& l : lamp)
+                            for (const BlockerTriangle& t : near)
+                                if (segmentCrosses(y, l, t)) return true;
+                    }
+        }
+    }
+    return false;
 }
 
 // Test 4: the blocker error E_rr of the whole source within e_max; then the plans of its parts.
@@ -458,7 +551,7 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
     whole.polygon = {frame.at(frame.s0, frame.t0), frame.at(frame.s1, frame.t0), frame.at(frame.s1, frame.t1),
                      frame.at(frame.s0, frame.t1)};
     ReceiverDesc rec;
-    for (int p : site.rpolys) {
+    for (int p : site.rplane ? site.rpolys : site.lit) {
         const Polygon& g = sc.polygons[size_t(p)].geom;
         for (int k = 0; k < g.n; ++k) rec.points.push_back(g.v[k]);
     }
@@ -764,7 +857,7 @@ ConvolutionSites::Refusal ConvolutionSites::computeTextures(Site& site, Convolut
     out.receiver = site.r;
     out.source = site.s;
     out.receiverPolygons.clear();
-    for (int p : site.rpolys)
+    for (int p : site.rplane ? site.rpolys : site.lit)
         if (receivesLight(sc.polygons[size_t(p)]))
             out.receiverPolygons.push_back(p);
     out.sourcePolygons = site.faces;

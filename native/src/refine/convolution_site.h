@@ -2,16 +2,17 @@
 // source/receiver pair is served by one convolution link instead of standard refinement. The tests
 // run in order of cost, and any that fails hands the pair back to the standard refiner:
 //   1. the transfer is significant (its bound exceeds epsilon: the caller checks);
-//   2. the receiver is planar and its box at least a_min of the scene's diagonal; the source is a
+//   2. the receiver is planar (with cluster_receivers, any cluster whose own faces do not shade one
+//      another from the source) and its box at least a_min of the scene's diagonal; the source is a
 //      planar group of emitting faces turned toward it (with indirect_sources, of any faces that send
 //      light: a reflector's source image is then its own radiosity, beginPass);
 //   3. blockers stand in the shaft between the two boxes (Haines-Wallace), and every occluder in the
 //      shaft is either such a blocker or lies on or behind the source's or the receiver's plane;
 //   4. the convolution's blocker error E_rr, with up to n_max sub-blockers, is at most e_max;
 //   5. its predicted FFT time (2 + 2N) C n^2 log n is at most t_max.
-// Receivers are planar, so the shadows a convolution cannot see (inside the receiver, §4.1) do not
-// exist; an occluder that reaches into the receiver's or the source's box refuses the link rather than
-// leak light through it.
+// The shadows a convolution cannot see (inside the receiver, §4.1) do not exist on a planar receiver, and a
+// cluster receiver whose faces would cast them is refused (shadowsItself); an occluder that reaches into the
+// receiver's or the source's box refuses the link rather than leak light through it.
 #pragma once
 #include <atomic>
 #include <functional>
@@ -61,7 +62,8 @@ public:
     // the blocker selection); the others are, as convolution_refused/<reason>.
     // TooWide: a source of separate lamps too wide for kMaxParts parts of its distance to the receiver;
     // counted as too_coarse, and the refiner looks for links from its lamps instead (linkPossibleBelow).
-    enum class Refusal { None, NotASite, NoBlocker, Intruder, Invalid, TooCoarse, TooSlow, TooWide };
+    // SelfShadow: a cluster receiver (cluster_receivers) whose own faces shade one another from the source.
+    enum class Refusal { None, NotASite, NoBlocker, Intruder, Invalid, TooCoarse, TooSlow, TooWide, SelfShadow };
 
 private:
     struct Site;  // a pair's polygons, boxes, blockers and plans, filled in by the steps below
@@ -70,6 +72,7 @@ private:
     Refusal selectBlockers(Site& site) const;              // test 3
     Refusal planTextures(Site& site) const;                // test 4
     Refusal planBands(Site& site) const;                   // test 4 for a receiver steep to its source
+    bool shadowsItself(const Site& site) const;            // test 3 for a receiver that is not flat
     Refusal withinTimeBudget(const Site& site) const;      // test 5
     Refusal computeTextures(Site& site, ConvolutionLink& out);
     bool planarCluster(int c) const { return planar_[size_t(c)]; }

@@ -64,6 +64,11 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        band (a shelf before a wall: 0.64 % worst against the exact light). Off by default: it moves results  \
        wherever it links (classroom walls and chair backs) and was not scored against Cycles. */             \
     X(bool, wallLinks, "wall_links", false, '[', 0, 1, ']')                                                \
+    /* Cluster receivers (issue 12): a cluster whose faces do not share one plane (a vault, a terrain, the    \
+       paper's desk clusters) may take one convolution link, each face lit through the textures at its own     \
+       position and normal; a cluster whose own faces shadow each other from the source is refused (sample   \
+       rays, counted as self_shadow) and refined as before. Off by default: not scored against Cycles. */    \
+    X(bool, clusterReceivers, "cluster_receivers", false, '[', 0, 1, ']')                                  \
     /* Indirect sources (issue 12): a reflecting face (or a planar group of them) lit by the first pass is   \
        a convolution source too, its source image drawn from its own radiosity and the shadow textures it    \
        receives (the paper's source "rendered with all its radiosity textures", §4.1). Off by default: not   \
