@@ -446,6 +446,20 @@ ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
     for (int p : site.faces)
         if (!sc.polygons[size_t(p)].castsShadow) return Refusal::NoBlocker;
     Shaft shaft(site.rb, site.fb);
+    // A receiver that is not flat has no plane to stand behind; along the source's normal every segment from
+    // the source to a lit face stays above the deepest lit point, so what lies wholly below it (the floor
+    // under a cluster standing on it) cannot cut one.
+    double deepest = -HUGE_VAL;
+    for (int p : site.lit) {
+        const Polygon& g = sc.polygons[size_t(p)].geom;
+        for (int k = 0; k < g.n; ++k)
+            deepest = std::max(deepest, dot(g.v[k] - site.splane->geom.v[0], site.splane->normal));
+    }
+    auto below = [&](const ScenePolygon& q) {
+        for (int k = 0; k < q.geom.n; ++k)
+            if (dot(q.geom.v[k] - site.splane->geom.v[0], site.splane->normal) < deepest - planeTol_) return false;
+        return true;
+    };
     std::vector<int> candidates = rays_.occludersInShaft(shaft);
     std::sort(candidates.begin(), candidates.end());
     for (int q : candidates) {
@@ -463,7 +477,8 @@ ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
         Bounds qb = shrunk(polygonBox(qp), tol_);
         if (shaft.classify(qb) == Shaft::Outside) continue;
         // In the source's or the receiver's plane, or behind it: cannot cut a segment between them.
-        if (onOrBehind(*site.splane, qp, planeTol_) || (site.rplane && onOrBehind(*site.rplane, qp, planeTol_)))
+        if (onOrBehind(*site.splane, qp, planeTol_) ||
+            (site.rplane ? onOrBehind(*site.rplane, qp, planeTol_) : below(qp)))
             continue;
         if (overlaps(qb, site.rb) || overlaps(qb, site.fb)) return Refusal::Intruder;
         const Polygon& g = qp.geom;
