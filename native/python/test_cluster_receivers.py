@@ -4,7 +4,9 @@ position and normal, and a cluster whose own faces shade one another from the la
 
 The scenes: a curved floor (a 4 x 4 m dome or trough of 8 x 8 cells, two triangles each, one object; every triangle
 too small for a link of its own), a black square card 1 m up and a 0.5 m lamp 2 m up, both facing down. Only the
-floor reflects, so its light is direct and the integral below, computed here independently of the solver, is exact.
+floor reflects, so the dome's light is direct and the integral below, computed here independently of the solver, is
+exact; the trough also sees itself, so both answers hold a little bounced light the integral lacks (0.23 % of the
+peak in the mean of either).
 A convex floor cannot shade itself; the trough's slopes (at most 13 degrees) are far below the lamp's elevation
 (over 40 degrees from every point), so neither is shaded by its own faces."""
 import numpy as np
