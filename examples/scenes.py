@@ -41,7 +41,7 @@ import cornell_box  # noqa: E402
 
 LIGHT_SCENES = ("light_point", "light_spot", "light_sun", "light_world", "light_sky", "light_area")
 SCENES = ("cornell", "office", "office5k", "blockers", "lattice", "scalable", "classroom", "window",
-          "uplight") + LIGHT_SCENES
+          "uplight", "vault") + LIGHT_SCENES
 CLASSROOM_POLYGONS = 1000
 
 
@@ -166,6 +166,38 @@ def build_lattice(scene=None):
             x, y = (i - 3.5) * pitch, (j - 3.5) * pitch
             shade.box((x - tile / 2, y - tile / 2, z), (x + tile / 2, y + tile / 2, z + 0.02))
     obs["Shade"] = shade.build("Shade", [_diffuse("LatticeShade", (0.5, 0.5, 0.5))], scene)
+    return _light_and_camera(obs, scene)
+
+
+def build_vault(scene=None):
+    """The lattice scene's shade and light over a curved floor instead of a flat one: a 4 m x 4 m dome
+    z = 0.25 cos(pi x / 4) cos(pi y / 4) in 8 x 8 cells of two triangles (one object, no face in the plane of
+    another), the receiver the cluster_receivers setting is for (issue 12: curved receivers)."""
+    scene = scene or bpy.context.scene
+    n, verts, faces = 8, [], []
+    for j in range(n + 1):
+        for i in range(n + 1):
+            x, y = -2 + 4 * i / n, -2 + 4 * j / n
+            verts.append((x, y, 0.25 * math.cos(math.pi * x / 4) * math.cos(math.pi * y / 4)))
+    for j in range(n):
+        for i in range(n):
+            a, b, c, d = j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i
+            faces += [(a, b, c), (a, c, d)]
+    me = bpy.data.meshes.new("Floor")
+    me.from_pydata(verts, [], faces)
+    me.materials.append(_diffuse("VaultFloor", (0.7, 0.7, 0.7)))
+    me.validate()
+    me.update()
+    floor = bpy.data.objects.new("Floor", me)
+    scene.collection.objects.link(floor)
+    obs = {"Floor": floor}
+    shade = MeshBuilder()
+    pitch, tile, z = 0.3, 0.18, 1.2
+    for i in range(8):
+        for j in range(8):
+            x, y = (i - 3.5) * pitch, (j - 3.5) * pitch
+            shade.box((x - tile / 2, y - tile / 2, z), (x + tile / 2, y + tile / 2, z + 0.02))
+    obs["Shade"] = shade.build("Shade", [_diffuse("VaultShade", (0.5, 0.5, 0.5))], scene)
     return _light_and_camera(obs, scene)
 
 
@@ -421,6 +453,8 @@ def build(name, scene=None, polygons=5000):
         return build_uplight(scene)
     if name == "lattice":
         return build_lattice(scene)
+    if name == "vault":
+        return build_vault(scene)
     if name == "window":
         return build_window(scene)
     if name in LIGHT_SCENES:

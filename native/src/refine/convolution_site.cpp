@@ -37,10 +37,8 @@ constexpr double kFilledShare = 0.9;  // faces filling less of their rectangle a
 constexpr double kSteep = 0.5;
 constexpr int kMaxBands = 32;
 // cluster_receivers: a cluster of faces in several planes is a receiver when it has at most this many faces
-// (the self-shadow test casts rays from every face against its neighbours), each face sampled in
-// kSelfSamples^2 points per triangle toward the source faces' corners and centres.
+// (the self-shadow test looks at the pairs of its faces that a shaft to the source does not separate).
 constexpr int kMaxClusterReceiverFaces = 256;
-constexpr int kSelfSamples = 4;
 
 
 // The box less `tol` on every side (a flat side stays where it is): whether two boxes overlap
@@ -490,22 +488,49 @@ ConvolutionSites::Refusal ConvolutionSites::selectBlockers(Site& site) const {
 
 namespace {
 
-// Whether the open segment (a, b) crosses the triangle (Moller-Trumbore); a and b are strictly inside
-// faces, so a touch at the segment's ends or along the triangle's edges is not a crossing.
-bool segmentCrosses(const Vec3& a, const Vec3& b, const BlockerTriangle& t) {
-    const Vec3 d = b - a, e1 = t[1] - t[0], e2 = t[2] - t[0];
-    const Vec3 pv = cross(d, e2);
-    const double det = dot(e1, pv);
-    if (std::fabs(det) < 1e-30) return false;
-    const double inv = 1 / det;
-    const Vec3 tv = a - t[0];
-    const double u = dot(tv, pv) * inv;
-    if (u <= 0 || u >= 1) return false;
-    const Vec3 qv = cross(tv, e1);
-    const double v = dot(d, qv) * inv;
-    if (v <= 0 || u + v >= 1) return false;
-    const double s = dot(e2, qv) * inv;
-    return s > 1e-9 && s < 1 - 1e-9;
+// Andrew's monotone chain: the convex hull of `p`, counter-clockwise, collinear points dropped.
+std::vector<std::pair<double, double>> hull2(std::vector<std::pair<double, double>> p) {
+    std::sort(p.begin(), p.end());
+    p.erase(std::unique(p.begin(), p.end()), p.end());
+    if (p.size() < 3) return p;
+    auto turn = [](const std::pair<double, double>& o, const std::pair<double, double>& a,
+                   const std::pair<double, double>& b) {
+        return (a.first - o.first) * (b.second - o.second) - (a.second - o.second) * (b.first - o.first);
+    };
+    std::vector<std::pair<double, double>> h(2 * p.size());
+    size_t k = 0;
+    for (size_t i = 0; i < p.size(); ++i) {
+        while (k >= 2 && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    for (size_t i = p.size() - 1, lo = k + 1; i-- > 0;) {
+        while (k >= lo && turn(h[k - 2], h[k - 1], p[i]) <= 0) --k;
+        h[k++] = p[i];
+    }
+    h.resize(k - 1);
+    return h;
+}
+
+// Whether two convex polygons of the plane overlap by more than `tol` along every edge normal of either
+// (separating axes): touching along an edge or at a point is not overlapping.
+bool overlap2(const std::vector<std::pair<double, double>>& a, const std::vector<std::pair<double, double>>& b,
+              double tol) {
+    for (const auto* poly : {&a, &b}) {
+        const size_t n = poly->size();
+        for (size_t i = 0; i < n && n >= 2; ++i) {
+            const auto& p = (*poly)[i];
+            const auto& q = (*poly)[(i + 1) % n];
+            double ax = q.second - p.second, ay = p.first - q.first, len = std::hypot(ax, ay);
+            if (!(len > 0)) continue;
+            ax /= len;
+            ay /= len;
+            double alo = HUGE_VAL, ahi = -HUGE_VAL, blo = HUGE_VAL, bhi = -HUGE_VAL;
+            for (const auto& v : a) alo = std::min(alo, v.first * ax + v.second * ay), ahi = std::max(ahi, v.first * ax + v.second * ay);
+            for (const auto& v : b) blo = std::min(blo, v.first * ax + v.second * ay), bhi = std::max(bhi, v.first * ax + v.second * ay);
+            if (ahi < blo + tol || bhi < alo + tol) return false;
+        }
+    }
+    return a.size() >= 3 && b.size() >= 3;
 }
 
 }  // namespace
@@ -514,43 +539,47 @@ bool segmentCrosses(const Vec3& a, const Vec3& b, const BlockerTriangle& t) {
 // the receiver only, so a face of the cluster shading another from the source (a monitor on its desk, a table
 // top over its legs) would leak the light it stops: the paper ignores such shadows (§4.1), here they refuse
 // the link and the refiner opens the cluster, whose parts then take links of their own (the paper's advice,
-// §7). Rays from kSelfSamples^2 points per triangle of each lit face to the source faces' corners and centres,
-// against the cluster's other faces that cross the shaft between the face and the source: any hit refuses.
-// Sampled, not a bound: a shadow thinner than the sample spacing can pass, which the texture then misses.
+// §7). Exact, not sampled: a face g of the cluster shades the lit face f where it reaches into the hull of f and
+// the source's rectangle (every segment from one to the other) strictly in front of f. The hull's section by
+// g's plane is the hull of where the segments between the hull's corners cross that plane; g, clipped to the
+// front of f, is tested against it by separating axes in the plane. A neighbour sharing an edge with f and
+// bending away from the source (a dome's next triangle) lies behind f's plane; one bending toward it (a trough's)
+// enters the hull only where it rises more steeply than the rays to the source, which is exactly when it shades.
 bool ConvolutionSites::shadowsItself(const Site& site) const {
     const Scene& sc = h_.scene();
-    std::vector<Vec3> lamp;
-    for (int p : site.faces) {
-        const Polygon& g = sc.polygons[size_t(p)].geom;
-        const Vec3 c = g.centroid();
-        lamp.push_back(c);
-        for (int k = 0; k < g.n; ++k) lamp.push_back(g.v[k] + (c - g.v[k]) * 1e-3);
-    }
-    std::vector<BlockerTriangle> near;
+    const SourceFrame frame = sourceFrame(sc, site.faces);
+    const Vec3 lamp[4] = {frame.at(frame.s0, frame.t0), frame.at(frame.s1, frame.t0), frame.at(frame.s1, frame.t1),
+                          frame.at(frame.s0, frame.t1)};
+    std::vector<Vec3> corners;
+    std::vector<std::pair<double, double>> section, face;
     for (int f : site.lit) {
-        const Polygon& fg = sc.polygons[size_t(f)].geom;
-        const Shaft shaft(polygonBox(sc.polygons[size_t(f)]), site.fb);
-        near.clear();
+        const ScenePolygon& fp = sc.polygons[size_t(f)];
+        const Shaft shaft(polygonBox(fp), site.fb);
+        corners.assign(lamp, lamp + 4);
+        for (int k = 0; k < fp.geom.n; ++k) corners.push_back(fp.geom.v[k]);
         for (int q : site.rpolys) {
             const ScenePolygon& qp = sc.polygons[size_t(q)];
             if (q == f || !(site.reflects ? qp.diffuseVisible : qp.blocksLamps)) continue;
             if (shaft.classify(polygonBox(qp)) == Shaft::Outside) continue;
-            for (int k = 1; k + 1 < qp.geom.n; ++k) near.push_back({qp.geom.v[0], qp.geom.v[k], qp.geom.v[k + 1]});
-        }
-        if (near.empty()) continue;
-        for (int k = 1; k + 1 < fg.n; ++k) {
-            const Vec3 o = fg.v[0], e1 = fg.v[k] - o, e2 = fg.v[k + 1] - o;
-            // Stratified points of the triangle: in each of the kSelfSamples^2 sub-triangles its centroid.
-            for (int i = 0; i < kSelfSamples; ++i)
-                for (int j = 0; i + j < kSelfSamples; ++j)
-                    for (int flip = 0; flip < 2 && (flip == 0 || i + j + 1 < kSelfSamples); ++flip) {
-                        const double a = (i + (flip ? 2.0 : 1.0) / 3) / kSelfSamples;
-                        const double b = (j + (flip ? 2.0 : 1.0) / 3) / kSelfSamples;
-                        const Vec3 y = o + e1 * a + e2 * b;
-                        for (const Vec3& l : lamp)
-                            for (const BlockerTriangle& t : near)
-                                if (segmentCrosses(y, l, t)) return true;
-                    }
+            const Polygon g = clipToHalfSpace(qp.geom, fp.geom.v[0] + fp.normal * planeTol_, fp.normal);
+            if (g.n < 3) continue;
+            const Vec3 n = qp.normal, o = g.v[0];
+            const Vec3 e1 = normalize(g.v[1] - o), e2 = cross(n, e1);
+            auto in2 = [&](const Vec3& p) { return std::make_pair(dot(p - o, e1), dot(p - o, e2)); };
+            section.clear();
+            for (size_t a = 0; a < corners.size(); ++a) {
+                const double da = dot(corners[a] - o, n);
+                if (std::fabs(da) <= planeTol_) section.push_back(in2(corners[a]));
+                for (size_t b = a + 1; b < corners.size(); ++b) {
+                    const double db = dot(corners[b] - o, n);
+                    if ((da > planeTol_ && db < -planeTol_) || (da < -planeTol_ && db > planeTol_))
+                        section.push_back(in2(corners[a] + (corners[b] - corners[a]) * (da / (da - db))));
+                }
+            }
+            if (section.size() < 3) continue;
+            face.clear();
+            for (int k = 0; k < g.n; ++k) face.push_back(in2(g.v[k]));
+            if (overlap2(hull2(section), hull2(face), planeTol_)) return true;
         }
     }
     return false;
