@@ -41,11 +41,11 @@ BOUNCES = 32
 # (epsilon, min_size): the default is the third; finer settings need a smaller min_size to take effect.
 PENUMBRA_SETTINGS = [(0.002, 0.01), (0.0005, 0.01), (0.0002, 0.01), (0.0001, 0.005), (5e-5, 0.002)]
 # Each setting runs twice: standard refinement only, and hybrid with convolution links (the default); "contact"
-# is the hybrid with contact sub-blockers (furniture standing on the floor), "grouped" the hybrid with receivers that
-# are not flat (a curved floor), each run only when asked (--methods).
+# is the hybrid with contact sub-blockers (furniture standing on the floor), "flat" the hybrid whose receivers must be
+# flat (cluster_receivers off, the default before stop 33), each run only when asked (--methods).
 METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True}),
            ("contact", {"convolution": True, "contact_slabs": True}),
-           ("grouped", {"convolution": True, "cluster_receivers": True})]
+           ("flat", {"convolution": True, "cluster_receivers": False})]
 CYCLES_SAMPLES = [4, 16, 64, 256]
 RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128, "classroom": 128,
               "uplight": 128, "vault": 128}
@@ -360,7 +360,7 @@ def plot(r, path):
                               (axes[1], "texel_corrected", "per texel")):
         cyc = [c for c in r["cycles"] if c[metric] > 0]
         for method, style, colour in (("standard", "o--", "tab:gray"), ("hybrid", "o-", "tab:blue"),
-                                      ("contact", "o-", "tab:green"), ("grouped", "o-", "tab:purple")):
+                                      ("contact", "o-", "tab:green"), ("flat", "o:", "tab:purple")):
             pen = [p for p in r["penumbra"] if "stopped" not in p and p[metric] > 0
                    and p.get("method", "standard") == method]
             if not pen:
@@ -368,7 +368,7 @@ def plot(r, path):
             ax.loglog([p["seconds"] for p in pen], [100 * p[metric] for p in pen], style, color=colour,
                       label=f"Penumbra {method}" + {"hybrid": " (convolution links)",
                                                     "contact": " (+ contact sub-blockers)",
-                                                    "grouped": " (+ receivers not flat)"}.get(method, ""))
+                                                    "flat": " (flat receivers only)"}.get(method, ""))
             for p in pen:
                 ax.annotate(f"ε {p['epsilon']:g}", (p["seconds"], 100 * p[metric]), fontsize=7, color=colour,
                             textcoords="offset points", xytext=(4, 4))

@@ -148,11 +148,11 @@ SETTINGS = (
             "horizontal bands below the lamp. Off by default: textures are made only where the blockers are flat "
             "along the lamp's axis (shelves, table tops); furniture with tall faces is left to the ordinary "
             "refinement", group="convolution"),
-    Setting("cluster_receivers", bool, False, None, "Grouped Receivers",
+    Setting("cluster_receivers", bool, True, None, "Grouped Receivers",
             "Let a group of faces that do not lie in one plane (a vault, a terrain, a curved cushion) take one "
             "shadow texture for the whole group, each face lit at its own position and angle. A group whose "
-            "faces shade one another from the lamp is left to the ordinary refinement. Off by default: not yet "
-            "compared with Cycles on furnished rooms", group="convolution"),
+            "faces shade one another from the lamp is left to the ordinary refinement, as is everything when "
+            "this is off", group="convolution"),
     Setting("indirect_sources", bool, False, None, "Bounced Light Shadow Textures",
             "Let a brightly lit surface (a ceiling over an uplight, a sunlit wall) cast its bounced light through "
             "blockers as shadow textures too, weighted by its own light and shadows. Off by default: not yet "

@@ -131,7 +131,7 @@ def test_a_curved_floor_takes_one_texture_link_and_holds_the_exact_shadow(amp, g
     s, faces = curved_scene(amp, ground)
     pts, nrm = s.face_points(faces)
     exact = s.exact(pts, nrm)
-    off = _native.solve(*s.args(), {})
+    off = _native.solve(*s.args(), {"cluster_receivers": False})
     on = _native.solve(*s.args(), {"cluster_receivers": True})
     assert len(off.convolution_links) == 0
     links = on.convolution_links
@@ -170,7 +170,7 @@ def test_a_cluster_that_shades_itself_is_refused_and_opened(centre):
     the answer is the one without cluster_receivers, bit for bit. With planar_clusters the floor's faces form one
     flat cluster under the refused one, which takes one link for all 128 of them."""
     s, faces = stool_scene(centre)
-    off = _native.solve(*s.args(), {})
+    off = _native.solve(*s.args(), {"cluster_receivers": False})
     on = _native.solve(*s.args(), {"cluster_receivers": True})
     assert on.report["convolution_refused"]["self_shadow"] >= 1
     pts, nrm = s.face_points(faces)
@@ -205,7 +205,7 @@ def test_a_post_standing_in_the_curved_floor_refuses_the_floor_and_casts_its_sha
         s.poly(q, RHO, 0, 0)
     s.boxes.append((lo, hi))
     on = _native.solve(*s.args(), {"cluster_receivers": True})
-    off = _native.solve(*s.args(), {})
+    off = _native.solve(*s.args(), {"cluster_receivers": False})
     assert on.report["convolution_refused"]["self_shadow"] >= 1
     pts, nrm = s.face_points(faces)
     inside = ~((pts[:, 0] > x0) & (pts[:, 0] < x1) & (pts[:, 1] > y0) & (pts[:, 1] < y1))

@@ -143,11 +143,13 @@ TestScene cardRoom() {
 // is refused as too slow and the output is unchanged (same hashes, same counts but the refusal's reason).
 // Stop 31: a reflector's cluster links take 4 provisional rays in the first pass (refiner.cpp): litRoom's rays
 // 4347408 -> 4347348, hashes unchanged.
+// Stop 33: cluster_receivers on by default; litRoom's cluster of the room's faces below the lamp is tried too and
+// refused (no blocker): convolution_tried 2 -> 3, no_blocker 1 -> 2, hashes unchanged.
 TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
     expectGolden(testing::litRoom(), goldenSettings(), {"531cbbda60987f1a", "52c33d32611fa96c",
                     "polygons=13 elements=35621 leaves=26719 links=175068 rays=4347348 shafts_clear=6625 "
-                    "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
-                    "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
+                    "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=3 convolution_texels=0 "
+                    "refused.intruder=0 refused.invalid=0 refused.no_blocker=2 refused.too_coarse=1 "
                     "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 max_error=0x0p+0 "
                     "residual=0x1.07f16648da44fp-14 converged=1 warnings=0"});
 }
