@@ -524,9 +524,18 @@ bool overlap2(const std::vector<std::pair<double, double>>& a, const std::vector
             if (!(len > 0)) continue;
             ax /= len;
             ay /= len;
-            double alo = HUGE_VAL, ahi = -HUGE_VAL, blo = HUGE_VAL, bhi = -HUGE_VAL;
-            for (const auto& v : a) alo = std::min(alo, v.first * ax + v.second * ay), ahi = std::max(ahi, v.first * ax + v.second * ay);
-            for (const auto& v : b) blo = std::min(blo, v.first * ax + v.second * ay), bhi = std::max(bhi, v.first * ax + v.second * ay);
+            auto extent = [&](const std::vector<std::pair<double, double>>& poly2, double& lo, double& hi) {
+                lo = HUGE_VAL;
+                hi = -HUGE_VAL;
+                for (const auto& v : poly2) {
+                    const double x = v.first * ax + v.second * ay;
+                    lo = std::min(lo, x);
+                    hi = std::max(hi, x);
+                }
+            };
+            double alo, ahi, blo, bhi;
+            extent(a, alo, ahi);
+            extent(b, blo, bhi);
             if (ahi < blo + tol || bhi < alo + tol) return false;
         }
     }

@@ -150,7 +150,8 @@ TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
                     "polygons=13 elements=35621 leaves=26719 links=175068 rays=4347348 shafts_clear=6625 "
                     "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=3 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=2 refused.too_coarse=1 "
-                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 max_error=0x0p+0 "
+                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 "
+                    "max_error=0x0p+0 "
                     "residual=0x1.07f16648da44fp-14 converged=1 warnings=0"});
 }
 
@@ -159,7 +160,8 @@ TEST(Golden, CardRoomWithConvolutionIsBitIdenticalToTheRecordedRun) {
                     "polygons=8 elements=29396 leaves=22049 links=162621 rays=2894720 shafts_clear=2882 "
                     "clusters=1 cluster_links=0 convolution_links=1 convolution_tried=2 convolution_texels=147456 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=0 "
-                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 max_error=0x0p+0 "
+                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 "
+                    "max_error=0x0p+0 "
                     "residual=0x1.9d7293056a162p-15 converged=1 warnings=0"});
 }
 
@@ -171,7 +173,8 @@ TEST(Golden, LitRoomWithoutFinalGatherOrClustersIsBitIdenticalToTheRecordedRun) 
                     "polygons=13 elements=35589 leaves=26695 links=173131 rays=4307408 shafts_clear=6452 "
                     "clusters=0 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
-                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=0 iterations=14 refine_passes=3 max_error=0x0p+0 "
+                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=0 iterations=14 refine_passes=3 "
+                    "max_error=0x0p+0 "
                     "residual=0x1.35195b85b202p-14 converged=1 warnings=0"});
 }
 
