@@ -156,16 +156,20 @@ def build_blockers(scene=None):
     return _light_and_camera(obs, scene)
 
 
-def build_lattice(scene=None):
-    scene = scene or bpy.context.scene
-    obs = {"Floor": _floor("LatticeFloor", scene)}
+def _lattice_shade(material, scene):
+    """64 thin 0.18 m tiles on a 0.3 m pitch, 1.2 m up: the shade of the lattice and vault scenes."""
     shade = MeshBuilder()
     pitch, tile, z = 0.3, 0.18, 1.2
     for i in range(8):
         for j in range(8):
             x, y = (i - 3.5) * pitch, (j - 3.5) * pitch
             shade.box((x - tile / 2, y - tile / 2, z), (x + tile / 2, y + tile / 2, z + 0.02))
-    obs["Shade"] = shade.build("Shade", [_diffuse("LatticeShade", (0.5, 0.5, 0.5))], scene)
+    return shade.build("Shade", [_diffuse(material, (0.5, 0.5, 0.5))], scene)
+
+
+def build_lattice(scene=None):
+    scene = scene or bpy.context.scene
+    obs = {"Floor": _floor("LatticeFloor", scene), "Shade": _lattice_shade("LatticeShade", scene)}
     return _light_and_camera(obs, scene)
 
 
@@ -190,14 +194,7 @@ def build_vault(scene=None):
     me.update()
     floor = bpy.data.objects.new("Floor", me)
     scene.collection.objects.link(floor)
-    obs = {"Floor": floor}
-    shade = MeshBuilder()
-    pitch, tile, z = 0.3, 0.18, 1.2
-    for i in range(8):
-        for j in range(8):
-            x, y = (i - 3.5) * pitch, (j - 3.5) * pitch
-            shade.box((x - tile / 2, y - tile / 2, z), (x + tile / 2, y + tile / 2, z + 0.02))
-    obs["Shade"] = shade.build("Shade", [_diffuse("VaultShade", (0.5, 0.5, 0.5))], scene)
+    obs = {"Floor": floor, "Shade": _lattice_shade("VaultShade", scene)}
     return _light_and_camera(obs, scene)
 
 

@@ -14,24 +14,18 @@ import numpy as np
 import pytest
 
 import _native
+import test_convolution_groups
 
 RHO, EMIT, LAMP_Z, LAMP_HALF, CARD_Z = 0.5, 10.0, 2.0, 0.25, 1.0
 
 
-class Scene:
+class Scene(test_convolution_groups.Scene):
+    """The flat-floor tests' scene builder (its `poly`), with curved floors and a reference for any receiver."""
+
     def __init__(self):
-        self.verts, self.polys, self.refl, self.emis, self.flags, self.obj = [], [], [], [], [], []
+        super().__init__()
         self.cards = []   # (x0, y0, x1, y1, z): horizontal rectangles that block, for the reference
         self.boxes = []   # (lo, hi): axis-aligned boxes that block, for the reference
-
-    def poly(self, corners, rho, emit, obj, flag=0):
-        self.polys.append([len(self.verts) + k for k in range(len(corners))] + [-1] * (4 - len(corners)))
-        self.verts.extend(corners)
-        self.refl.append([rho] * 3)
-        self.emis.append([emit] * 3)
-        self.obj.append(obj)
-        self.flags.append(flag)
-        return len(self.polys) - 1
 
     def curved_floor(self, amp, n=8):
         """z = amp cos(pi x / 4) cos(pi y / 4) over [-2, 2]^2 in n x n cells of two triangles (normals up)."""
