@@ -572,8 +572,10 @@ bool ConvolutionSites::shadowsItself(const Site& site) const {
             if (shaft.classify(polygonBox(qp)) == Shaft::Outside) continue;
             const Polygon g = clipToHalfSpace(qp.geom, fp.geom.v[0] + fp.normal * planeTol_, fp.normal);
             if (g.n < 3) continue;
+            // A basis of g's plane from its normal alone: clipping may leave coincident corners.
             const Vec3 n = qp.normal, o = g.v[0];
-            const Vec3 e1 = normalize(g.v[1] - o), e2 = cross(n, e1);
+            const Vec3 e1 = normalize(std::fabs(n.x) < 0.6 ? cross(n, Vec3{1, 0, 0}) : cross(n, Vec3{0, 1, 0}));
+            const Vec3 e2 = cross(n, e1);
             auto in2 = [&](const Vec3& p) { return std::make_pair(dot(p - o, e1), dot(p - o, e2)); };
             section.clear();
             for (size_t a = 0; a < corners.size(); ++a) {

@@ -1,9 +1,13 @@
 // ConvolutionSites on a floor under a lamp: a card floating between them makes a convolution site; a
 // card resting on the floor takes contact sub-blockers; a post through it, or nothing in the shaft are refused, each counted under
-// its reason; wouldLink() answers the same without counting or computing anything.
+// its reason; wouldLink() answers the same without counting or computing anything. A trough of two slopes is one
+// receiver with cluster_receivers, gentle or steep, and refused (self_shadow) with a seat over one slope.
 #include "refine/convolution_site.h"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
 
 #include "convolution/cost_model.h"
 #include "convolution/soft_shadow.h"
@@ -201,19 +205,26 @@ TestScene floorUnderTwoLamps(double gap, double z) {
     return t;
 }
 
+// The node of the cluster holding exactly `polys` (sorted), or -1 if there is none.
+int clusterWith(const Hierarchy& h, const std::vector<int>& polys) {
+    const ClusterTree& ct = h.clusters();
+    for (size_t c = 0; c < ct.size(); ++c) {
+        std::vector<int> p(ct.polygons().begin() + ct[int(c)].begin, ct.polygons().begin() + ct[int(c)].end);
+        std::sort(p.begin(), p.end());
+        if (p == polys) return clusterNode(int(c));
+    }
+    return -1;
+}
+
 struct ClusteredSites : testing::SolverParts {
     std::unique_ptr<ConvolutionSites> sites;
-    int pair = -1;  // the cluster node holding exactly the two lamps
-    explicit ClusteredSites(const TestScene& t) : SolverParts(t, Settings{}) {
+    int pair = -1;  // the cluster node holding exactly polygons 1 and 2 (the two lamps of twoLamps)
+    explicit ClusteredSites(const TestScene& t, const Settings& s = Settings{}) : SolverParts(t, s) {
         setFftCostConstant(1e-9);
-        sites = std::make_unique<ConvolutionSites>(*h, *rays, Settings{}, counters);
-        const ClusterTree& ct = h->clusters();
-        for (size_t c = 0; c < ct.size(); ++c) {
-            std::vector<int> polys(ct.polygons().begin() + ct[int(c)].begin, ct.polygons().begin() + ct[int(c)].end);
-            std::sort(polys.begin(), polys.end());
-            if (polys == std::vector<int>{1, 2}) pair = clusterNode(int(c));
-        }
+        sites = std::make_unique<ConvolutionSites>(*h, *rays, s, counters);
+        pair = clusterWith(*h, {1, 2});
     }
+    size_t count(const char* name) const { return counters.values().at(name); }
 };
 
 TEST(ConvolutionSites, SeparateLampsTooWideForTheirPartsAreLinkedOneByOne) {
@@ -329,6 +340,80 @@ TEST(ConvolutionSites, ACupboardBeforeTheWallIsRefusedAsTooCoarse) {
     ConvolutionLink l;
     EXPECT_FALSE(s.sites->tryLink(0, 1, l));
     EXPECT_EQ(s.count("convolution_refused/too_coarse"), 1u);
+}
+
+// cluster_receivers: a trough of two slopes (object 0, 4 x 4 quads each, tilted by `slope` radians toward the
+// middle) under a black card (1) and a lamp (2); with `seat`, a one-sided plate 0.4 m over one slope in the
+// trough's object.
+TestScene trough(double slope, bool seat) {
+    TestScene t;
+    t.names = {"Trough", "Card", "Lamp"};
+    const Rgb grey{0.5, 0.5, 0.5};
+    const int n = 4;
+    const double h = std::tan(slope) * 2;  // the slopes rise by h over their 2 m
+    for (int side : {-1, 1})
+        for (int i = 0; i < n; ++i)
+            for (int j = 0; j < n; ++j) {
+                // x from 0 outward to 2 * side, z = h |x| / 2, y across [-2, 2]
+                double x0 = side * 2.0 * i / n, x1 = side * 2.0 * (i + 1) / n;
+                double y0 = -2 + 4.0 * j / n, y1 = -2 + 4.0 * (j + 1) / n;
+                Vec3 a{x0, y0, h * std::fabs(x0) / 2}, b{x1, y0, h * std::fabs(x1) / 2};
+                Vec3 c{x1, y1, h * std::fabs(x1) / 2}, d{x0, y1, h * std::fabs(x0) / 2};
+                if (side > 0) t.quad(a, b, c, d, grey, {}, 0, 0);
+                else t.quad(a, d, c, b, grey, {}, 0, 0);  // normals up on both slopes
+            }
+    if (seat) t.quad({0.6, -0.3, 0.4 + h}, {1.2, -0.3, 0.4 + h}, {1.2, 0.3, 0.4 + h}, {0.6, 0.3, 0.4 + h}, grey, {}, 0, 0);
+    const double c = 0.3, zc = 1.0 + h, s = 0.25, zl = 2.0 + h;
+    t.quad({-c, -c, zc}, {-c, c, zc}, {c, c, zc}, {c, -c, zc}, {}, {}, 0, 1);
+    t.quad({-s, -s, zl}, {-s, s, zl}, {s, s, zl}, {s, -s, zl}, {}, {10, 10, 10}, kLightOnly, 2);
+    return t;
+}
+
+Settings clustered(bool on) {
+    Settings s;
+    s.clusterReceivers = on;
+    return s;
+}
+
+// The node of the cluster holding exactly the polygons [0, count).
+int clusterOf(const Hierarchy& h, int count) {
+    std::vector<int> polys(size_t(count), 0);
+    for (int i = 0; i < count; ++i) polys[size_t(i)] = i;
+    return clusterWith(h, polys);
+}
+
+TEST(ConvolutionSites, ATroughIsOneReceiverOnlyWithClusterReceivers) {
+    // Slopes of 10 degrees under a lamp 2 m up: no face shades another; all 32 take the one link.
+    ClusteredSites off(trough(0.1745, false), clustered(false));
+    const int r = clusterOf(*off.h, 32), lamp = 33;
+    ASSERT_LT(r, 0);
+    ConvolutionLink l;
+    EXPECT_FALSE(off.sites->receiverCandidate(r));
+    ClusteredSites on(trough(0.1745, false), clustered(true));
+    ASSERT_EQ(clusterOf(*on.h, 32), r);
+    EXPECT_TRUE(on.sites->receiverCandidate(r));
+    ASSERT_TRUE(on.sites->tryLink(r, lamp, l));
+    EXPECT_EQ(l.receiverPolygons.size(), 32u);
+    EXPECT_EQ(on.count("convolution_refused/self_shadow"), 0u);
+}
+
+TEST(ConvolutionSites, AClusterReceiverShadingItselfIsRefused) {
+    // A seat over one slope, in the trough's object: it shades the slope under it.
+    ClusteredSites seat(trough(0.1745, true), clustered(true));
+    const int r = clusterOf(*seat.h, 33), lamp = 34;
+    ASSERT_LT(r, 0);
+    ConvolutionLink l;
+    EXPECT_FALSE(seat.sites->tryLink(r, lamp, l));
+    EXPECT_EQ(seat.count("convolution_refused/self_shadow"), 1u);
+    // Slopes of 70 degrees: still no face shades another, the lamp being over the trough (the region above a
+    // V is convex, so no segment from a slope to the lamp leaves it): a steep neighbour is no shadow by itself,
+    // and the exact test links it.
+    ClusteredSites steep(trough(1.2217, false), clustered(true));
+    const int rs = clusterOf(*steep.h, 32);
+    ASSERT_LT(rs, 0);
+    EXPECT_TRUE(steep.sites->tryLink(rs, 33, l));
+    EXPECT_EQ(l.receiverPolygons.size(), 32u);
+    EXPECT_EQ(steep.count("convolution_refused/self_shadow"), 0u);
 }
 
 }  // namespace
