@@ -4,8 +4,10 @@
 
 namespace penumbra {
 
-double pointToPolygonFormFactor(const Vec3& x, const Vec3& n, const Polygon& poly) {
-    Polygon p = clipToHalfSpace(poly, x, n);
+namespace {
+
+// Lambert's formula over a polygon wholly in front of x.
+double lambert(const Vec3& x, const Vec3& n, const Polygon& p) {
     if (p.n < 3) return 0.0;
     double sum = 0.0;
     for (int i = 0; i < p.n; ++i) {
@@ -17,6 +19,16 @@ double pointToPolygonFormFactor(const Vec3& x, const Vec3& n, const Polygon& pol
         sum += gamma * dot(n, c) / cl;
     }
     return std::fabs(sum) / (2.0 * M_PI);
+}
+
+}  // namespace
+
+double pointToPolygonFormFactor(const Vec3& x, const Vec3& n, const Polygon& poly) {
+    // Most polygons lie wholly in front of x: clipping would return them unchanged, vertex for vertex, after
+    // building (and zeroing) a twelve-vertex copy.
+    for (int i = 0; i < poly.n; ++i)
+        if (dot(poly.v[i] - x, n) < 0) return lambert(x, n, clipToHalfSpace(poly, x, n));
+    return lambert(x, n, poly);
 }
 
 double polygonToPolygonFormFactor(const Polygon& from, const Polygon& to, int s) {
