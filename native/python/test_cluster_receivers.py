@@ -110,8 +110,8 @@ def curved_scene(amp, ground=False):
 
 
 def against(got, ref):
-    peak = ref.max()
-    return float(np.abs(got - ref).max() / peak), float(np.abs(got - ref).mean() / peak)
+    """Worst and mean difference from the exact light, in fractions of its peak."""
+    return test_convolution_groups.against(got, ref, ref.max())
 
 
 @pytest.mark.parametrize("amp,ground", [(0.2, False), (-0.2, False), (0.2, True), (-0.2, True)],
@@ -163,8 +163,8 @@ def test_a_cluster_that_shades_itself_is_refused_and_opened(centre):
     """One texture over the floor and the seat would light the floor under the seat (without the self-shadow test
     the seat at 0.6 m took one link with the floor and lit the floor under itself at 0.95 of the peak): the floor's
     cluster is refused (self_shadow) and refined as without the setting, its flat parts taking links with the seat
-    as a blocker, so the answer is the one without cluster_receivers, bit for bit. With planar_clusters the floor's faces form one
-    flat cluster under the refused one, which takes one link for all 128 of them."""
+    as a blocker, so the answer is the one without cluster_receivers, bit for bit. With planar_clusters the floor's
+    faces form one flat cluster under the refused one, which takes one link for all 128 of them."""
     s, faces = stool_scene(centre)
     off = _native.solve(*s.args(), {"cluster_receivers": False})
     on = _native.solve(*s.args(), {"cluster_receivers": True})

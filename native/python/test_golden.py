@@ -58,8 +58,8 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 # 43537833 -> 43550116 (cluster rays 1659257 -> 1297652), iterations 17 -> 16; radiance at the face centres against a
 # fine solve made this stop (eps 5e-5, min_size 0.006, 256 gather rays) 2.003 -> 1.993 % RMS, mean -0.60 -> -0.56 %.
 # Stop 33: cluster_receivers on by default: 152 clusters of furniture more tried, all refused (151 intruders, 1 with no
-# blocker), the light unchanged (same arrays). Stop 32: the flux bound takes each face at its own distance, no form factor above 1 (node.cpp, fluxBound): links
-# 898509 -> 893105, rays 43550116 -> 43423597; against the same fine solve 1.993 -> 1.994 % RMS, mean -0.56 %.
+# blocker), the light unchanged (same arrays). Stop 32: the flux bound takes each face at its own distance, no form
+# factor above 1 (node.cpp, fluxBound): links 898509 -> 893105, rays 43550116 -> 43423597; against the same fine solve 1.993 -> 1.994 % RMS, mean -0.56 %.
 EXPECTED_COUNTS = {
     "polygons": 999, "elements": 38675, "leaves": 28916, "links": 893105, "rays": 43423597, "rays_batched": 24706432,
     "rays_cluster": 1255389, "shafts_clear": 27540, "shared_cluster_links": 18325,

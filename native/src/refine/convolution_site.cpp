@@ -330,6 +330,8 @@ struct ConvolutionSites::Site {
     Bounds rb, fb;               // boxes of the receiver and of the source faces
     const ScenePolygon* rplane = nullptr;  // the receiver's plane; null for a cluster receiver that is not flat
     std::vector<int> lit;        // not flat: the receiving faces with the whole source in front of them
+    // The faces the textures are planned over and handed to: a flat receiver's all, a cluster's lit ones.
+    const std::vector<int>& receivers() const { return rplane ? rpolys : lit; }
     const ScenePolygon* splane = nullptr;
     std::vector<BlockerTriangle> tris;
     std::vector<SourcePart> parts;
@@ -606,7 +608,7 @@ ConvolutionSites::Refusal ConvolutionSites::planTextures(Site& site) const {
     whole.polygon = {frame.at(frame.s0, frame.t0), frame.at(frame.s1, frame.t0), frame.at(frame.s1, frame.t1),
                      frame.at(frame.s0, frame.t1)};
     ReceiverDesc rec;
-    for (int p : site.rplane ? site.rpolys : site.lit) {
+    for (int p : site.receivers()) {
         const Polygon& g = sc.polygons[size_t(p)].geom;
         for (int k = 0; k < g.n; ++k) rec.points.push_back(g.v[k]);
     }
@@ -912,7 +914,7 @@ ConvolutionSites::Refusal ConvolutionSites::computeTextures(Site& site, Convolut
     out.receiver = site.r;
     out.source = site.s;
     out.receiverPolygons.clear();
-    for (int p : site.rplane ? site.rpolys : site.lit)
+    for (int p : site.receivers())
         if (receivesLight(sc.polygons[size_t(p)]))
             out.receiverPolygons.push_back(p);
     out.sourcePolygons = site.faces;

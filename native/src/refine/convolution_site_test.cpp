@@ -362,7 +362,8 @@ TestScene trough(double slope, bool seat) {
                 if (side > 0) t.quad(a, b, c, d, grey, {}, 0, 0);
                 else t.quad(a, d, c, b, grey, {}, 0, 0);  // normals up on both slopes
             }
-    if (seat) t.quad({0.6, -0.3, 0.4 + h}, {1.2, -0.3, 0.4 + h}, {1.2, 0.3, 0.4 + h}, {0.6, 0.3, 0.4 + h}, grey, {}, 0, 0);
+    const double zs = 0.4 + h;
+    if (seat) t.quad({0.6, -0.3, zs}, {1.2, -0.3, zs}, {1.2, 0.3, zs}, {0.6, 0.3, zs}, grey, {}, 0, 0);
     const double c = 0.3, zc = 1.0 + h, s = 0.25, zl = 2.0 + h;
     t.quad({-c, -c, zc}, {-c, c, zc}, {c, c, zc}, {c, -c, zc}, {}, {}, 0, 1);
     t.quad({-s, -s, zl}, {-s, s, zl}, {s, s, zl}, {s, -s, zl}, {}, {10, 10, 10}, kLightOnly, 2);
