@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace penumbra {
 namespace {
@@ -38,6 +39,35 @@ double quadrature(const Vec3& x, const Vec3& n, const Polygon& poly, int s) {
             }
     }
     return sum;
+}
+
+// Lambert's formula takes its edge angles from angleBetween, not std::atan2: the two must agree over the
+// whole half turn, at every magnitude, at the reduction's seams (pi/8, pi/4, 3 pi/8, pi/2) and at the ends.
+TEST(FormFactor, AngleBetweenMatchesAtan2) {
+    double worst = 0;
+    auto check = [&](double s, double c) {
+        double err = std::fabs(angleBetween(s, c) - std::atan2(s, c));
+        worst = std::max(worst, err);
+        EXPECT_LE(err, 1e-13) << "sine " << s << " cosine " << c;
+    };
+    const int steps = 200000;
+    for (double scale : {1e-200, 1e-8, 1.0, 3e5, 1e200})
+        for (int i = 0; i <= steps; ++i) {
+            double theta = M_PI * i / steps;
+            check(scale * std::sin(theta), scale * std::cos(theta));
+        }
+    for (int k = 1; k < 8; ++k)
+        for (double d : {-1e-12, -1e-15, 0.0, 1e-15, 1e-12}) {
+            double theta = k * M_PI / 8 + d;
+            check(std::sin(theta), std::cos(theta));
+        }
+    check(0.0, 1.0);
+    check(0.0, -1.0);
+    check(1.0, 0.0);
+    check(1e-300, 1.0);
+    check(1e-300, -1.0);
+    EXPECT_EQ(angleBetween(0.0, 0.0), 0.0);
+    std::printf("largest difference from atan2: %.3g rad\n", worst);
 }
 
 TEST(FormFactor, ParallelSquareMatchesQuadrature) {

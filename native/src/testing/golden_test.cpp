@@ -145,6 +145,8 @@ TestScene cardRoom() {
 // 4347408 -> 4347348, hashes unchanged.
 // Stop 33: cluster_receivers on by default; litRoom's cluster of the room's faces below the lamp is tried too and
 // refused (no blocker): convolution_tried 2 -> 3, no_blocker 1 -> 2, hashes unchanged.
+// Stop 34: Lambert's formula takes its edge angles from a polynomial (form_factor.cpp, angleBetween), not glibc's
+// atan2: the hashes and counts unchanged, the solver's residual moved in its last digits (re-recorded).
 TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
     expectGolden(testing::litRoom(), goldenSettings(), {"531cbbda60987f1a", "52c33d32611fa96c",
                     "polygons=13 elements=35621 leaves=26719 links=175068 rays=4347348 shafts_clear=6625 "
@@ -152,7 +154,7 @@ TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=2 refused.too_coarse=1 "
                     "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 "
                     "max_error=0x0p+0 "
-                    "residual=0x1.07f16648da44fp-14 converged=1 warnings=0"});
+                    "residual=0x1.07f16648da421p-14 converged=1 warnings=0"});
 }
 
 TEST(Golden, CardRoomWithConvolutionIsBitIdenticalToTheRecordedRun) {
@@ -162,7 +164,7 @@ TEST(Golden, CardRoomWithConvolutionIsBitIdenticalToTheRecordedRun) {
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=0 "
                     "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=14 refine_passes=3 "
                     "max_error=0x0p+0 "
-                    "residual=0x1.9d7293056a162p-15 converged=1 warnings=0"});
+                    "residual=0x1.9d7293056f21ep-15 converged=1 warnings=0"});
 }
 
 TEST(Golden, LitRoomWithoutFinalGatherOrClustersIsBitIdenticalToTheRecordedRun) {
