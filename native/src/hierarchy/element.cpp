@@ -52,6 +52,13 @@ Hierarchy::Hierarchy(const Scene& scene, size_t maxElements, bool clustering, bo
                              std::to_string(maxElements_));
     int first = allocate(int(numRoots_));
     for (size_t i = 0; i < numRoots_; ++i) initRoot((*this)[first + i], scene.polygons[i], int(i));
+    faceBoxes_.reserve(clusters_.polygons().size());
+    for (int p : clusters_.polygons()) {
+        const Element& e = (*this)[size_t(p)];
+        FaceBox f{{}, e.center, scene.polygons[size_t(p)].normal, e.area, p, bouncesLight(scene.polygons[size_t(p)])};
+        for (int k = 0; k < e.n; ++k) f.box.extend(e.v[k]);
+        faceBoxes_.push_back(f);
+    }
 }
 
 void Hierarchy::updateClusterFlux() {

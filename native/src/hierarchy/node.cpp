@@ -201,21 +201,19 @@ double fluxBound(const Hierarchy& h, int source, const Bounds& rb) {
     }
     // Face by face, each with its own direction to the receiver: a large cluster's faces see a
     // nearby receiver from quite different angles, and one widening for all would be loose.
-    const ClusterTree& ct = h.clusters();
-    const Cluster& c = ct[clusterIndex(source)];
-    const Scene& scene = h.scene();
+    const Cluster& c = h.clusters()[clusterIndex(source)];
+    const std::vector<Hierarchy::FaceBox>& faces = h.faceBoxes();
     double sum = 0;
     for (int k = c.begin; k < c.end; ++k) {
-        int p = ct.polygons()[size_t(k)];
-        const Element& e = h[size_t(p)];
-        double b = maxComponent(e.B);
-        if (b <= 0 || !bouncesLight(scene.polygons[size_t(p)])) continue;
-        Vec3 dj = rc - e.center;
+        const Hierarchy::FaceBox& f = faces[size_t(k)];
+        if (!f.bounces) continue;
+        double b = maxComponent(h[size_t(f.polygon)].B);
+        if (b <= 0) continue;
+        Vec3 dj = rc - f.center;
         double rj = length(dj);
-        double cj = rj > 0 ? std::min(1.0, std::max(0.0, dot(scene.polygons[size_t(p)].normal, dj) / rj +
-                                                             (rr + std::sqrt(e.area)) / rj))
+        double cj = rj > 0 ? std::min(1.0, std::max(0.0, dot(f.normal, dj) / rj + (rr + std::sqrt(f.area)) / rj))
                            : 1.0;
-        sum += b * formFactorBound(e.area, cj, boxDistance(rb, nodeBox(h, p)));
+        sum += b * formFactorBound(f.area, cj, boxDistance(rb, f.box));
     }
     return sum;
 }
