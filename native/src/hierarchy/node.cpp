@@ -126,11 +126,6 @@ Rgb clusterFluxAt(const Hierarchy& h, int ci, const Vec3& y, const Vec3* n) {
 
 }  // namespace
 
-double elementKernel(const Hierarchy& h, int e, const Vec3& y, const Vec3& n) {
-    const Element& el = h[size_t(e)];
-    return elementKernel(el, h.scene().polygons[el.polygon].normal, y, &n);
-}
-
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     if (!isClusterNode(source)) {
         const Element& e = h[size_t(source)];

@@ -12,9 +12,6 @@ Vec3 nodeCenter(const Hierarchy& h, int node);
 // A node's identity independent of creation order (an element's or a cluster's key).
 uint64_t nodeKey(const Hierarchy& h, int node);
 
-// Irradiance at (y, n) per unit radiosity of element `e`: fluxAt(h, e, y, &n) is h[e].B times this.
-double elementKernel(const Hierarchy& h, int e, const Vec3& y, const Vec3& n);
-
 // Irradiance at y from `source`. An element is a small emitter at its centre: B A cos cos_y /
 // (pi r^2 + A), the + A keeping it finite when r is small. A cluster emits from its centre, each
 // normal class by its own cosine: sum over classes of (sum of B A) max(0, n_m . u) cos_y / (pi r^2),

@@ -31,33 +31,6 @@ void Solver::prepareClusters(const std::vector<Link>& links) {
             for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
                 if (links[i].partial()) linkFaceV_[i] = faceVis_->find(nodeKey(h_, r), nodeKey(h_, links[i].source));
     }
-    // An element's light at each face of a receiving cluster is its radiosity times a kernel that only the
-    // geometry sets (the disc estimate, or near the element its exact form factor): the kernels are taken
-    // once here instead of in every sweep. Up to a budget (8 bytes each): past it, links are evaluated
-    // each sweep as before, with the same arithmetic, so the sums are the same either way.
-    constexpr size_t kMaxKernels = size_t(1) << 25;
-    kernelStart_.assign(intoClusters, kNoKernels);
-    size_t total = 0;
-    for (size_t i = 0; i < intoClusters; ++i) {
-        if (isClusterNode(links[i].source)) continue;
-        const Cluster& c = ct[clusterIndex(links[i].receiver)];
-        size_t n = size_t(c.end - c.begin);
-        if (total + n > kMaxKernels) break;
-        kernelStart_[i] = total;
-        total += n;
-    }
-    elementKernels_.assign(total, 0.0);
-    elementKernels_.shrink_to_fit();
-    const std::vector<Hierarchy::FaceLight>& faces = h_.faceLight();
-    parallelFor(intoClusters, resolveThreads(settings_.threads), 1024, [&](size_t b, size_t e, int) {
-        for (size_t i = b; i < e; ++i) {
-            if (kernelStart_[i] == kNoKernels) continue;
-            const Cluster& c = ct[clusterIndex(links[i].receiver)];
-            double* w = elementKernels_.data() + kernelStart_[i];
-            for (int k = c.begin; k < c.end; ++k)
-                w[k - c.begin] = elementKernel(h_, links[i].source, faces[size_t(k)].center, faces[size_t(k)].normal);
-        }
-    });
 }
 
 void Solver::gather(const std::vector<Link>& links) {
@@ -134,7 +107,6 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
                 // A cluster source far from the whole receiving cluster is one linear map for all its faces.
                 FarFieldLight far;
                 const bool linear = isClusterNode(source) && farFieldLight(h_, source, ct[c].center, ct[c].radius, far);
-                const double* w = kernelStart_[i] == kNoKernels ? nullptr : elementKernels_.data() + kernelStart_[i];
                 for (size_t k = kb; k < ke; ++k) {
                     if (!gathers[k - b]) continue;
                     double v = faceV ? faceV[k - size_t(ct[c].begin)] : V;
@@ -143,10 +115,7 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
                     else if (v <= 0)
                         continue;  // a face that sees none of the source (many under a shared link)
                     const Vec3 &y = faces[k].center, &n = faces[k].normal;
-                    if (w)
-                        sum[k - b] += h_[source].B * w[k - size_t(ct[c].begin)] * v;
-                    else
-                        sum[k - b] += (linear ? far.at(y, &n) : fluxAt(h_, source, y, &n)) * v;
+                    sum[k - b] += (linear ? far.at(y, &n) : fluxAt(h_, source, y, &n)) * v;
                 }
             }
         }

@@ -80,11 +80,6 @@ private:
     const std::vector<Rgb>* lightE_ = nullptr;
     const ClusterFaceVisibility* faceVis_ = nullptr;
     std::vector<const float*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
-    // Per link into a cluster from an element: where its kernels at the cluster's faces start in
-    // elementKernels_ (kNoKernels: evaluated each sweep). Geometry only, so computed once per solve.
-    static constexpr size_t kNoKernels = ~size_t(0);
-    std::vector<size_t> kernelStart_;
-    std::vector<double> elementKernels_;
     std::vector<int> clusterDepth_;        // steps from the root cluster
 };
 
