@@ -48,7 +48,8 @@ METHODS = [("standard", {"convolution": False}), ("hybrid", {"convolution": True
            ("flat", {"convolution": True, "cluster_receivers": False})]
 CYCLES_SAMPLES = [4, 16, 64, 256]
 RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128, "classroom": 128,
-              "uplight": 128, "vault": 128}
+              "uplight": 128, "vault": 128,
+              "scalable": 256}  # the scaling office: at 128² most of its furniture faces hold no texel centre
 
 
 def parse_args():
