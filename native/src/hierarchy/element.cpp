@@ -52,10 +52,14 @@ Hierarchy::Hierarchy(const Scene& scene, size_t maxElements, bool clustering, bo
                              std::to_string(maxElements_));
     int first = allocate(int(numRoots_));
     for (size_t i = 0; i < numRoots_; ++i) initRoot((*this)[first + i], scene.polygons[i], int(i));
+    // The faces' fixed geometry, once: updateClusterFlux refreshes only their light.
+    faceLight_.reserve(clusters_.polygons().size());
     faceBoxes_.reserve(clusters_.polygons().size());
     for (int p : clusters_.polygons()) {
         const Element& e = (*this)[size_t(p)];
-        FaceBox f{{}, e.center, scene.polygons[size_t(p)].normal, e.area, p, bouncesLight(scene.polygons[size_t(p)])};
+        const ScenePolygon& sp = scene.polygons[size_t(p)];
+        faceLight_.push_back({e.center, sp.normal, Rgb{}, e.area, p, false});
+        FaceBox f{{}, e.center, sp.normal, e.area, p, bouncesLight(sp)};
         for (int k = 0; k < e.n; ++k) f.box.extend(e.v[k]);
         faceBoxes_.push_back(f);
     }
@@ -65,13 +69,10 @@ void Hierarchy::updateClusterFlux() {
     clusters_.updateFlux(scene_, [&](int p) {
         return bouncesLight(scene_.polygons[size_t(p)]) ? (*this)[size_t(p)].B : Rgb{};
     });
-    const std::vector<int>& order = clusters_.polygons();
-    faceLight_.resize(order.size());
-    for (size_t k = 0; k < order.size(); ++k) {
-        int p = order[k];
-        const Element& e = (*this)[size_t(p)];
-        const ScenePolygon& sp = scene_.polygons[size_t(p)];
-        faceLight_[k] = {e.center, sp.normal, e.B, e.area, p, maxComponent(e.B) > 0 && bouncesLight(sp)};
+    for (size_t k = 0; k < faceLight_.size(); ++k) {
+        FaceLight& f = faceLight_[k];
+        f.B = (*this)[size_t(f.polygon)].B;
+        f.lit = maxComponent(f.B) > 0 && faceBoxes_[k].bounces;
     }
 }
 

@@ -51,9 +51,10 @@ public:
     // Refreshes the clusters' emission from the polygons' current radiosities (their root elements).
     void updateClusterFlux();
     // The clusters' faces as a near cluster's light is summed over them (node.cpp's fluxAt), in the
-    // cluster tree's polygon order, refreshed with the flux. Every sweep sums near clusters face by face
-    // for every face below a receiving cluster; read from the elements and the scene's polygons each face
-    // cost two scattered cache lines (with far_field 0.5, half the solve's time at 20k polygons).
+    // cluster tree's polygon order; their geometry is set once, their light (B, lit) refreshed with the flux.
+    // Every sweep sums near clusters face by face for every face below a receiving cluster; read from the
+    // elements and the scene's polygons each face cost two scattered cache lines (with far_field 0.5, half
+    // the solve's time at 20k polygons).
     struct FaceLight {
         Vec3 center, normal;  // the root element's centre, the polygon's normal
         Rgb B;

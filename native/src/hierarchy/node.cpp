@@ -84,7 +84,7 @@ Rgb facesFluxAt(const Hierarchy& h, int begin, int end, const Vec3& y, const Vec
     // The faces are read from their compact copy (Hierarchy::faceLight); only the exact form factor
     // near a face needs its element.
     const std::vector<Hierarchy::FaceLight>& faces = h.faceLight();
-    assert(faces.size() == h.clusters().polygons().size());  // updateClusterFlux has run
+    assert(faces.size() == h.clusters().polygons().size());  // one per face of the cluster tree
     Rgb sum;
     for (int k = begin; k < end; ++k) {
         const Hierarchy::FaceLight& f = faces[size_t(k)];
