@@ -36,6 +36,8 @@ constexpr int kFaceRays = 4;
 // 2.07 %; at the default 2.14 -> 2.13, 1.51 -> 1.45, 1.48 -> 1.48, 1.18 -> 1.11 %; the floating blocks within 0.02
 // points (0.87 -> 0.88 % at the default), the lattice unchanged (docs/scaling.md, stop 31).
 constexpr int kProvisionalRays = 4;
+// Draws of a source point before giving up on finding one in front of the receiver (estimateVisibility).
+constexpr int kFrontDraws = 32;
 constexpr double kProvisionalKept = 0.125;
 constexpr float kProvisional = -1.0f;
 bool provisional(const Link& l) { return l.Fspread == kProvisional; }
@@ -400,6 +402,27 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     // Cosines below this are rounding noise of points lying in the other's plane (a block's side
     // meeting the floor), which must not decide whether a ray counts.
     constexpr double kGrazing = 1e-4;
+    // Drawn by light over the whole source, a ray to a part behind the receiver's plane counts for nothing
+    // (below): a card standing on a floor, facing away from the lamp, drew all its rays from the floor's lit
+    // part behind it, counted none, and the floor's light to it was dropped as hidden. Redrawn until in
+    // front, the rays follow the light of the part the link carries; where next to none of the light lies
+    // in front, that part is drawn by area.
+    auto inFront = [&](const Vec3& p) { return dot(p - r.v[0], ur) > lift_; };
+    auto inFrontByLight = [&](int i, int n) {
+        for (int tries = 0; tries < kFrontDraws; ++tries) {
+            // Drawn in the order the single draw this replaces took them, so that links whose first point
+            // lies in front keep their rays.
+            double t = rng.next(), s = rng.next();
+            double u = tries == 0 ? (i + rng.next()) / n : rng.next();
+            Vec3 p = pointByLight(si, u, s, t);
+            if (inFront(p)) return p;
+        }
+        for (int tries = 0; tries < kFrontDraws; ++tries) {
+            Vec3 p = s.pointAt(rng.next(), rng.next());
+            if (inFront(p)) return p;
+        }
+        return s.pointAt(rng.next(), rng.next());
+    };
     int counted = 0, seen = 0, open = 0;
     // With batches, each ray counts by the point-to-point kernel cos cos / r^2 of its ends, so V is the
     // visible share of the form factor rather than of the areas: they differ where the source is
@@ -416,7 +439,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
         for (int i = 0; i < n; ++i) {
             int a = i, b = perm[i];
             from[i] = r.pointAt((a % m + rng.next()) / m, (a / m + rng.next()) / m) + nr;
-            to[i] = (byLight ? pointByLight(si, (i + rng.next()) / n, rng.next(), rng.next())
+            to[i] = (byLight ? inFrontByLight(i, n)
                              : s.pointAt((b % m + rng.next()) / m, (b / m + rng.next()) / m)) + ns;
         }
         // Only rays whose ends each lie in front of the other's surface count: Fmean already leaves

@@ -197,5 +197,41 @@ TEST(Refiner, AReflectorsFirstPassLinksAreProvisionalUntilTheNextPassJudgesThemW
     EXPECT_GE(r.counters.values().at("rays") - raysBefore, 16u * redone);
 }
 
+TEST(Refiner, ASourceWhoseLightLiesBehindTheReceiverIsSeenByItsPartInFront) {
+    // A 2 x 2 floor lit on its x < 0 half only, and a card over its dark half facing +x, away from the lit
+    // half: nothing stands between the card and the floor in front of it, so every link between them must
+    // see all of it (V = 1). Rays drawn by the floor's light all went to the lit half behind the card,
+    // none counted, and the floor's light to the card was dropped as hidden.
+    TestScene t;
+    t.names = {"Floor", "Card", "Lamp"};
+    t.quad({-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}, {0.5, 0.5, 0.5}, {}, 0, 0);
+    t.quad({0.2, -0.1, 0.1}, {0.2, 0.1, 0.1}, {0.2, 0.1, 0.3}, {0.2, -0.1, 0.3}, {0.5, 0.5, 0.5}, {}, 0, 1);
+    t.quad({-0.8, -0.1, 1}, {-0.8, 0.1, 1}, {-0.6, 0.1, 1}, {-0.6, -0.1, 1}, {}, {10, 10, 10}, kLightOnly, 2);
+    Settings s = standardOnly(0.01);
+    s.minSize = 0.2;  // the card cannot split
+    Refined r(t, s);
+    int fc = r.h->subdivide(0);
+    double sum = 0;
+    for (int k = 0; k < (*r.h)[0].numChildren; ++k) {
+        Element& c = (*r.h)[size_t(fc + k)];
+        c.B = c.center.x < 0 ? Rgb{10, 10, 10} : Rgb{0.01, 0.01, 0.01};
+        sum += c.B.x * c.area;
+    }
+    (*r.h)[0].B = Rgb{1, 1, 1} * (sum / (*r.h)[0].area);
+    r.h->updateRadiosityDeviation();
+    Refiner again(*r.h, *r.rays, s, r.counters);
+    std::vector<Link> links = r.links;
+    bool changed = false;
+    again.rerefine(links, nullptr, changed);
+    size_t found = 0;
+    for (const Link& l : links) {
+        if ((*r.h)[size_t(l.receiver)].polygon != 1 || (*r.h)[size_t(l.source)].polygon != 0) continue;
+        ++found;
+        EXPECT_GT(l.Fmean, 0.0f);
+        EXPECT_EQ(l.V, 1.0f) << "source element " << l.source;
+    }
+    EXPECT_GT(found, 0u) << "the floor's light to the card was dropped";
+}
+
 }  // namespace
 }  // namespace penumbra
