@@ -38,10 +38,11 @@ constexpr int kFaceRays = 4;
 constexpr int kProvisionalRays = 4;
 // Draws of a source point before giving up on finding one in front of the receiver (estimateVisibility).
 constexpr int kFrontDraws = 32;
-// Levels below a source whose parts differ in light that its unoccluded form factor is weighted over (estimateUnoccluded).
+// Levels below a source whose parts differ in light that its unoccluded form factor is weighted over
+// (estimateUnoccluded).
 constexpr int kWeightLevels = 3;
-// A part nearer the receiver than this many times (its area + the receiver's) in squared distance takes its share by
-// Lambert's formula, a farther one by the point kernel at its centre (estimateUnoccluded).
+// A part nearer the receiver than this many times (its area + the receiver's) in squared distance takes its share
+// by Lambert's formula, a farther one by the point kernel at its centre (estimateUnoccluded).
 constexpr double kNearParts = 9.0;
 // A source's parts differ in light when they stray from its radiosity by more than this share of it (deviates).
 constexpr double kDeviates = 0.05;
@@ -374,7 +375,8 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
                 int e = stack[top], d = depth[top], fc = h_.firstChild(e);
                 for (int k = 0; k < h_[e].numChildren; ++k) {
                     const Element& c = h_[fc + k];
-                    if (d + 1 < kWeightLevels && rho * c.Bdev > threshold_ && deviates(fc + k) && hasSettledChildren(fc + k)) {
+                    bool open = rho * c.Bdev > threshold_ && deviates(fc + k) && hasSettledChildren(fc + k);
+                    if (d + 1 < kWeightLevels && open) {
                         stack[top] = fc + k, depth[top++] = d + 1;
                         continue;
                     }
