@@ -445,13 +445,13 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     // front, the rays follow the light of the part the link carries; where next to none of the light lies
     // in front, that part is drawn by area.
     auto inFront = [&](const Vec3& p) { return dot(p - r.v[0], ur) > lift_; };
-    auto inFrontByLight = [&](int i, int n) {
+    auto inFrontByLight = [&](int stratum, int strata) {
         for (int tries = 0; tries < kFrontDraws; ++tries) {
-            // Drawn in the order the single draw this replaces took them, so that links whose first point
-            // lies in front keep their rays.
-            double t = rng.next(), s = rng.next();
-            double u = tries == 0 ? (i + rng.next()) / n : rng.next();
-            Vec3 p = pointByLight(si, u, s, t);
+            // In the order GCC evaluated the single draw this replaces (its arguments right to left), so
+            // that links whose first point lies in front keep their rays (the goldens' counts stayed equal).
+            double pt = rng.next(), ps = rng.next();
+            double u = tries == 0 ? (stratum + rng.next()) / strata : rng.next();
+            Vec3 p = pointByLight(si, u, ps, pt);
             if (inFront(p)) return p;
         }
         for (int tries = 0; tries < kFrontDraws; ++tries) {
