@@ -44,7 +44,7 @@ constexpr int kWeightLevels = 3;
 // A part nearer the receiver than this many times (its area + the receiver's) in squared distance takes its share
 // by Lambert's formula, a farther one by the point kernel at its centre (estimateUnoccluded).
 constexpr double kNearParts = 9.0;
-// A source's parts differ in light when they stray from its radiosity by more than this share of it (deviates).
+// A source's parts differ in light when they stray from its radiosity by more than this share of it (partsDiffer).
 constexpr double kDeviates = 0.05;
 constexpr double kProvisionalKept = 0.125;
 constexpr float kProvisional = -1.0f;
@@ -359,9 +359,9 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
             // that split the source (refineElements) see it at that depth, and those that keep it whole must
             // draw on the same distribution, or the light the first do not take is lost (a lamp in a closed
             // box reflected 0.987 of its light with the parts one level down, 0.997 three levels down).
-            // Only parts whose deviation could matter to a receiver are opened, whatever this receiver's form
-            // factor, so that all receivers of the source draw on the same parts: a furnace's faces differ by
-            // rounding, and opening them all tripled its refinement.
+            // Only parts whose deviation could matter to some receiver, and is more than the solve's noise
+            // (partsDiffer), are opened, whatever this receiver's form factor: all receivers of the source then
+            // draw on the same parts.
             // The parts only share out the whole source's exact form factor by their light: a part far from
             // the receiver against its size takes its share by the point kernel at its centre, and only the
             // near ones by Lambert's formula (all by Lambert's formula took a quarter more time on the 5k
@@ -375,8 +375,9 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
                 int e = stack[top], d = depth[top], fc = h_.firstChild(e);
                 for (int k = 0; k < h_[e].numChildren; ++k) {
                     const Element& c = h_[fc + k];
-                    bool open = rho * c.Bdev > threshold_ && deviates(fc + k) && hasSettledChildren(fc + k);
-                    if (d + 1 < kWeightLevels && open) {
+                    bool open = d + 1 < kWeightLevels && rho * c.Bdev > threshold_ && partsDiffer(fc + k) &&
+                                hasSettledChildren(fc + k);
+                    if (open) {
                         stack[top] = fc + k, depth[top++] = d + 1;
                         continue;
                     }
@@ -532,7 +533,7 @@ double Refiner::gradientError(const Link& l) const {
     return receiverRho(l.receiver) * double(s.Bdev) * double(l.Fmean) * var;
 }
 
-bool Refiner::deviates(int e) const {
+bool Refiner::partsDiffer(int e) const {
     // Parts whose light differs by a few per cent are the solve's own noise between passes (a furnace's faces,
     // uniform in the answer, differ by 1e-3 after the first, loose solve), not light worth resolving: taken
     // as real, the parts' frozen shares put a closed box of albedo 0.99 5 % off B = E / (1 - rho).
@@ -880,7 +881,7 @@ void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
     // darkest, because its corners in the desk's plane made the form factor's spread (0.5) outweigh the
     // desk's deviation (the 5k scaling office against Cycles, docs/benchmark.md, stop 35).
     double dev = gradientError(l);
-    if (dev > threshold_ && (dev >= linkError(l) || (!canR && deviates(si))) && hasSettledChildren(si)) {
+    if (dev > threshold_ && (dev >= linkError(l) || (!canR && partsDiffer(si))) && hasSettledChildren(si)) {
         int c = h_.firstChild(si);
         for (int k = 0; k < h_[si].numChildren; ++k) refine(ri, c + k, out);
         return;

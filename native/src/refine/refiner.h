@@ -90,7 +90,7 @@ private:
     // e has children that existed, with radiosities, before this refinement pass.
     bool hasSettledChildren(int e) const;
     // e's parts differ in light by more than the solve's noise between passes (kDeviates of its radiosity).
-    bool deviates(int e) const;
+    bool partsDiffer(int e) const;
     // The error of taking a source's radiosity as uniform when its parts differ (Bdev), however
     // visible: about rho * Bdev * F * min(1, size / distance).
     double gradientError(const Link& l) const;
