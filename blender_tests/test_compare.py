@@ -93,3 +93,42 @@ def test_operator_and_errors(baked_box, penumbra):
     scene.camera = None
     with pytest.raises(ValueError, match="camera"):
         penumbra.compare_cycles(scene, samples=4)
+
+
+def test_uv_owner_claims_the_texels_a_cycles_bake_writes(empty_scene, penumbra):
+    """uv_owner decides which texels the benchmark and these tests score. A texel it claims but Cycles leaves
+    unbaked reads as black and is scored as a wrong bake. Islands whose edges fall on texel centres (exactly,
+    or a sliver narrower than a texel ending on one) are where the two rules part; every texel must agree."""
+    from penumbra.compare import cycles_lightmaps, uv_owner
+    from helpers import diffuse_material
+    W = H = 16
+    # (u0, u1, v0, v1) in texel units; the mesh is one row of unit quads facing +Z, each with its own island.
+    islands = [(2.5, 5.5, 1.5, 4.5),      # every edge on a column or row of centres
+               (7.3, 7.5, 1.0, 6.0),      # a sliver ending on a centre: Cycles bakes none of it
+               (9.5, 9.7, 1.0, 6.0),      # a sliver starting on one
+               (1.0, 6.0, 8.3, 8.5),      # the same across rows
+               (8.2, 13.9, 8.1, 14.7)]    # an ordinary island
+    verts, faces, uvs = [], [], []
+    for k, (u0, u1, v0, v1) in enumerate(islands):
+        x = 2.0 * k
+        verts += [(x, 0, 0), (x + 1, 0, 0), (x + 1, 1, 0), (x, 1, 0)]
+        faces.append((4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3))
+        uvs += [(u0 / W, v0 / H), (u1 / W, v0 / H), (u1 / W, v1 / H), (u0 / W, v1 / H)]
+    me = bpy.data.meshes.new("Islands")
+    me.from_pydata(verts, [], faces)
+    me.uv_layers.new(name="UVMap").data.foreach_set("uv", np.array(uvs, np.float32).ravel())
+    me.materials.append(diffuse_material("White", (0.8, 0.8, 0.8)))
+    ob = bpy.data.objects.new("Islands", me)
+    empty_scene.collection.objects.link(ob)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    empty_scene.collection.objects.link(sun)
+    empty_scene.render.engine = "CYCLES"
+    maps, _ = cycles_lightmaps(empty_scene, {"Islands": ("UVMap", W, H)}, samples=1, margin=0)
+    baked = maps["Islands"][..., :3].sum(axis=-1) > 0
+    owner = uv_owner(me, "UVMap", W, H)
+    assert baked.sum() > 30
+    assert (owner == 1).sum() == 0 and (owner == 3).sum() == 0
+    assert np.array_equal(owner >= 0, baked), (
+        f"claimed but not baked {np.argwhere((owner >= 0) & ~baked).tolist()}, "
+        f"baked but not claimed {np.argwhere(~(owner >= 0) & baked).tolist()}")

@@ -314,9 +314,17 @@ def _write_outputs(out_dir, stem, ref, test, mask, heat_scale):
 
 # ---------------------------------------------------------------------------------------------- lightmap space
 
+# Blender's bake moves every UV by this many texels before its scan conversion (render/intern/bake.c in 3.4, against
+# pixel-aligned UVs): a texel whose centre lies on an island's edge, or within these few thousandths of it, is
+# never baked. Sampled at the centre alone, a face narrower than a texel claimed texels that Cycles leaves at 0,
+# and the scoring took them for unlit faces (stop 36: four such faces were a quarter of the scaling office's error).
+BAKE_SHIFT = (0.001, 0.002)
+
+
 def uv_owner(mesh, uv_name, width, height):
     """Index of the polygon whose UV footprint holds each texel centre, -1 outside every island; (H, W),
-    rows bottom to top like Image.pixels."""
+    rows bottom to top like Image.pixels. The centres are moved as Blender's bake moves them (BAKE_SHIFT), so
+    a texel is owned exactly where a Cycles bake writes it."""
     uv = np.empty(len(mesh.loops) * 2, np.float32)
     mesh.uv_layers[uv_name].data.foreach_get("uv", uv)
     uv = uv.reshape(-1, 2).astype(np.float64)
@@ -330,7 +338,8 @@ def uv_owner(mesh, uv_name, width, height):
         y1 = min(int(math.ceil(max(a[1], b[1], c[1]) * height - 0.5)), height - 1)
         if x1 < x0 or y1 < y0:
             continue
-        px, py = np.meshgrid((np.arange(x0, x1 + 1) + 0.5) / width, (np.arange(y0, y1 + 1) + 0.5) / height)
+        px, py = np.meshgrid((np.arange(x0, x1 + 1) + 0.5 + BAKE_SHIFT[0]) / width,
+                             (np.arange(y0, y1 + 1) + 0.5 + BAKE_SHIFT[1]) / height)
 
         def edge(p0, p1):
             return (p1[0] - p0[0]) * (py - p0[1]) - (p1[1] - p0[1]) * (px - p0[0])
