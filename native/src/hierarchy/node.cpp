@@ -43,11 +43,6 @@ double exactKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3& 
     return pointToPolygonFormFactor(y, n, e.polygonShape());
 }
 
-// Irradiance at (y, n) per unit radiosity of element e, lying on a plane with normal en.
-double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n) {
-    return faceKernel(e.center, en, e.area, y, n, [&] { return exactKernel(e, en, y, *n); });
-}
-
 double boxDistance(const Bounds& a, const Bounds& b) {
     double d2 = 0;
     for (int k = 0; k < 3; ++k) {
@@ -58,6 +53,10 @@ double boxDistance(const Bounds& a, const Bounds& b) {
 }
 
 }  // namespace
+
+double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n) {
+    return faceKernel(e.center, en, e.area, y, n, [&] { return exactKernel(e, en, y, *n); });
+}
 
 Bounds nodeBox(const Hierarchy& h, int node) {
     if (isClusterNode(node)) return h.clusters()[clusterIndex(node)].box;

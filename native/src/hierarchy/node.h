@@ -34,6 +34,10 @@ struct FarFieldLight {
 bool farFieldLight(const Hierarchy& h, int clusterSource, const Vec3& ballCenter, double ballRadius,
                    FarFieldLight& out);
 
+// Irradiance at y (facing n, or a sphere's cross-section with n null) per unit radiosity of element e,
+// which lies on a plane with normal en: the disc estimate from e's centre, exact within a few of e's widths.
+double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n);
+
 // Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`: face by
 // face, cosines widened by the angular radius of the other end, the distance shrunk to the gap between
 // the face's box and rb, and no face's form factor above 1 (so a face touching rb adds its radiosity).

@@ -41,9 +41,6 @@ constexpr int kFrontDraws = 32;
 // Levels below a source whose parts differ in light that its unoccluded form factor is weighted over
 // (estimateUnoccluded).
 constexpr int kWeightLevels = 3;
-// A part nearer the receiver than this many times (its area + the receiver's) in squared distance takes its share
-// by Lambert's formula, a farther one by the point kernel at its centre (estimateUnoccluded).
-constexpr double kNearParts = 9.0;
 // A source's parts differ in light when they stray from its radiosity by more than this share of it (partsDiffer).
 constexpr double kDeviates = 0.05;
 constexpr double kProvisionalKept = 0.125;
@@ -362,10 +359,9 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
             // Only parts whose deviation could matter to some receiver, and is more than the solve's noise
             // (partsDiffer), are opened, whatever this receiver's form factor: all receivers of the source then
             // draw on the same parts.
-            // The parts only share out the whole source's exact form factor by their light: a part far from
-            // the receiver against its size takes its share by the point kernel at its centre, and only the
-            // near ones by Lambert's formula (all by Lambert's formula took a quarter more time on the 5k
-            // office at the default epsilon).
+            // The parts only share out the whole source's exact form factor by their light, so each takes its
+            // share by the kernel the sweeps use for an element (elementKernel: exact near it, a disc estimate
+            // beyond); Lambert's formula at every part took a quarter more time on the 5k office at the default.
             const double rho = receiverRho(ri);
             double lit = 0, all = 0;
             int stack[4 * kWeightLevels], depth[4 * kWeightLevels], top = 0;
@@ -382,17 +378,7 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
                         continue;
                     }
                     double f = 0;
-                    if (length2(c.center - r.center) < kNearParts * (c.area + r.area)) {
-                        Polygon cp = c.polygonShape();
-                        for (int i = 0; i < np; ++i)
-                            if (dot(pts[i] - s.v[0], ns) > 0) f += pointToPolygonFormFactor(pts[i], nr, cp);
-                    } else {
-                        for (int i = 0; i < np; ++i) {
-                            Vec3 dv = c.center - pts[i];
-                            double r2 = length2(dv), cr = dot(nr, dv), cs = -dot(ns, dv);
-                            if (cr > 0 && cs > 0) f += c.area * cr * cs / (M_PI * r2 * r2);
-                        }
-                    }
+                    for (int i = 0; i < np; ++i) f += elementKernel(c, ns, pts[i], &nr);
                     all += f;
                     lit += f * (c.B.x + c.B.y + c.B.z) / bs;
                 }
