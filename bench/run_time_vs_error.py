@@ -4,7 +4,7 @@ same machine.
     PENUMBRA_ADDON_DIR=$PWD/build/addon blender -b --factory-startup --python-exit-code 1 \
         --python bench/run_time_vs_error.py -- [--scenes cornell,office,blockers] [--out docs] [--quick]
 
-For each scene (examples/cornell_box.py, examples/scenes.py):
+For each scene (examples/cornell_box.py, examples/scenes.py; "scalable20k" and the like size the scaling office):
 1. every receiver gets a smart-project UV map "Lightmap" (the same for all bakes) and its own materials, so Cycles
    bakes all receivers in one call;
 2. the reference is a Cycles DIFFUSE bake (Direct + Indirect + Color, 32 bounces, clamping and denoising off) with
@@ -21,6 +21,7 @@ import argparse
 import json
 import math
 import os
+import re
 import sys
 import time
 
@@ -50,6 +51,17 @@ CYCLES_SAMPLES = [4, 16, 64, 256]
 RESOLUTION = {"cornell": 128, "office": 128, "office5k": 128, "blockers": 128, "lattice": 128, "classroom": 128,
               "uplight": 128, "vault": 128,
               "scalable": 256}  # the scaling office: at 128² most of its furniture faces hold no texel centre
+# "scalable20k" and the like: the scaling office at that many thousand polygons (5k is "scalable"), at its resolution.
+SIZED_SCALABLE = re.compile(r"scalable(\d+)k")
+
+
+def build_scene(name):
+    m = SIZED_SCALABLE.fullmatch(name)
+    return scenes.build("scalable", polygons=int(m.group(1)) * 1000) if m else scenes.build(name)
+
+
+def resolution(name):
+    return RESOLUTION["scalable"] if SIZED_SCALABLE.fullmatch(name) else RESOLUTION.get(name, 128)
 
 
 def parse_args():
@@ -87,7 +99,7 @@ def prepare(name):
     """Build the scene, unwrap the receivers, give each object its own materials; returns receiver names."""
     from penumbra.compare import _material_emits
     bpy.ops.wm.read_homefile(use_empty=True)
-    obs = scenes.build(name)
+    obs = build_scene(name)
     receivers = [n for n, o in obs.items() if o.type == "MESH" and not _material_emits(o)]
     for n in receivers:
         ob = bpy.data.objects[n]
@@ -184,7 +196,7 @@ def run_scene(penumbra, name, args, penumbra_settings=None):
     """Reference, Penumbra series and Cycles series of one scene; `penumbra_settings` replaces the
     (epsilon, min_size) list (bench/lights_vs_cycles.py runs fewer)."""
     from penumbra.compare import cycles_lightmaps
-    res = RESOLUTION.get(name, 128)
+    res = resolution(name)
     receivers = prepare(name)
     ref_samples = 64 if args.quick else args.ref_samples
     a, b, ref_seconds = reference(name, receivers, res, ref_samples, args.cache)
