@@ -163,6 +163,12 @@ SETTINGS = (
             "percent less time on a 10,000-polygon office), but from about 0.35 it is less exact close to groups "
             "of objects (the inside of an open box)",
             group="refinement", blender={"min": 0.05, "max": 1.0, "precision": 2, "step": 5}),
+    Setting("contact_floor", float, 0.0, ("[", 0.0, INF, ")"), "Contact Floor",
+            "0: the smallest patch is Min Size everywhere. More: a face that a smaller object touches or nearly "
+            "touches (a stand on a desk, a chair leg on the floor) may be cut down to this many times that "
+            "object's face size there, so the light around small things is as detailed as they are. 1 is about "
+            "twice the time on a furnished office for a fifth less error against Cycles; 2 is a quarter more "
+            "time for a seventh less", group="refinement", blender={"min": 0.0, "max": 8.0, "precision": 2, "step": 25}),
     Setting("final_gather", bool, True, None, "Final Gather",
             "Evaluate the light coming straight from the lamps exactly at every texel and vertex (exact form "
             "factors, visibility from the solution) instead of reading it from the patches: no patch blotches "

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <string>
 
+#include "geometry/box_tree.h"
 #include "geometry/form_factor.h"
 #include "hierarchy/node.h"
 #include "hierarchy/predicates.h"
@@ -183,6 +184,7 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
         double m = sc.polygons[p].minEdge > 0 ? sc.polygons[p].minEdge : minEdge;
         minArea_[p] = m * m;
     }
+    if (s.contactFloor > 0) lowerFloorsAtContacts(s.contactFloor);
     lift_ = 1e-5 * sc.diagonal;
     if (!h.clusters().empty()) {
         const ClusterTree& ct = h.clusters();
@@ -241,6 +243,55 @@ bool Refiner::countLink(const Link& l) {
 
 void Refiner::keep(const Link& l, std::vector<Link>& out) {
     if (countLink(l)) out.push_back(l);
+}
+
+void Refiner::lowerFloorsAtContacts(double k) {
+    // What a small object changes around it (the shade in front of a monitor's stand, the dark ring round
+    // a chair leg) is about its own size wide, and the face it stands on must be cut that fine there to
+    // show it, and to send it on. Only faces of other objects count, so that a bevel or a tessellation
+    // does not lower its own mesh's floor; lamps that take no light do not count either.
+    const Scene& sc = h_.scene();
+    constexpr double kFloorLimit = 1e-3;  // metres: below this, a touching sliver would make millions of elements
+    std::vector<Bounds> boxes;
+    std::vector<int> small;
+    double reach = 0;
+    for (size_t q = 0; q < sc.polygons.size(); ++q) {
+        const ScenePolygon& sq = sc.polygons[q];
+        double size = std::sqrt(sq.area);
+        if (!receivesLight(sq) || k * size * k * size >= minArea_[q]) continue;
+        boxes.push_back(polygonBox(sq));
+        small.push_back(int(q));
+        reach = std::max(reach, 2 * size);
+    }
+    if (small.empty()) return;
+    BoxTree tree(std::move(boxes));
+    std::vector<double> floor2(sc.polygons.size());
+    parallelFor(sc.polygons.size(), resolveThreads(settings_.threads), 256, [&](size_t b, size_t e, int) {
+        for (size_t p = b; p < e; ++p) {
+            const ScenePolygon& sp = sc.polygons[p];
+            Bounds near = polygonBox(sp);
+            near.extend(near.lo - Vec3{reach, reach, reach});
+            near.extend(near.hi + Vec3{reach, reach, reach});
+            Bounds own = polygonBox(sp);
+            double m2 = minArea_[p];
+            tree.query([&](const Bounds& nb) { return overlaps(nb, near); }, [&](int i) {
+                const ScenePolygon& sq = sc.polygons[size_t(small[size_t(i)])];
+                if (sq.object == sp.object) return;
+                double size = std::sqrt(sq.area);
+                const Bounds& qb = tree.box(i);
+                double gap2 = 0;
+                for (int a = 0; a < 3; ++a) {
+                    double g = std::max({0.0, qb.lo[a] - own.hi[a], own.lo[a] - qb.hi[a]});
+                    gap2 += g * g;
+                }
+                if (gap2 > 4 * size * size) return;
+                double f = std::max(k * size, kFloorLimit);
+                m2 = std::min(m2, f * f);
+            });
+            floor2[p] = m2;
+        }
+    });
+    for (size_t p = 0; p < sc.polygons.size(); ++p) minArea_[p] = floor2[p];
 }
 
 bool Refiner::canSplit(int e) const {

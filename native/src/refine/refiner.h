@@ -85,6 +85,8 @@ private:
     // transfer times its standard error is within the threshold.
     void estimateVisibility(int r, int s, Link& l, int batches = 0, double transfer = 0);
     bool canSplit(int e) const;
+    // contact_floor: lowers minArea_ of faces near smaller faces of other objects (settings.h).
+    void lowerFloorsAtContacts(double k);
     // A point of element e's leaves, chosen by their share of its light B * area (u in [0, 1)).
     Vec3 pointByLight(int e, double u, double s, double t) const;
     // e has children that existed, with radiosities, before this refinement pass.
