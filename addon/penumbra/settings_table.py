@@ -167,8 +167,8 @@ SETTINGS = (
             "0: the smallest patch is Min Size everywhere. More: a face that a smaller object touches or nearly "
             "touches (a stand on a desk, a chair leg on the floor) may be cut down to this many times that "
             "object's face size there, so the light around small things is as detailed as they are. 1 is about "
-            "twice the time on a furnished office for a fifth less error against Cycles; 2 is a quarter more "
-            "time for a seventh less", group="refinement", blender={"min": 0.0, "max": 8.0, "precision": 2, "step": 25}),
+            "twice the time on a furnished office for a fifth less error against Cycles; 2 is about a third more "
+            "time for an eighth less", group="refinement", blender={"min": 0.0, "max": 8.0, "precision": 2, "step": 25}),
     Setting("final_gather", bool, True, None, "Final Gather",
             "Evaluate the light coming straight from the lamps exactly at every texel and vertex (exact form "
             "factors, visibility from the solution) instead of reading it from the patches: no patch blotches "

@@ -269,10 +269,10 @@ void Refiner::lowerFloorsAtContacts(double k) {
     parallelFor(sc.polygons.size(), resolveThreads(settings_.threads), 256, [&](size_t b, size_t e, int) {
         for (size_t p = b; p < e; ++p) {
             const ScenePolygon& sp = sc.polygons[p];
-            Bounds near = polygonBox(sp);
-            near.extend(near.lo - Vec3{reach, reach, reach});
-            near.extend(near.hi + Vec3{reach, reach, reach});
-            Bounds own = polygonBox(sp);
+            const Bounds own = polygonBox(sp);
+            Bounds near = own;
+            near.extend(own.lo - Vec3{reach, reach, reach});
+            near.extend(own.hi + Vec3{reach, reach, reach});
             double m2 = minArea_[p];
             tree.query([&](const Bounds& nb) { return overlaps(nb, near); }, [&](int i) {
                 const ScenePolygon& sq = sc.polygons[size_t(small[size_t(i)])];

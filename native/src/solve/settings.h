@@ -85,12 +85,13 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        0.5, where one share per face of a cluster receiver stands for a penumbra across the face.          \
        docs/scaling.md. */                                                                                 \
     X(double, farField, "far_field", 0.3, '(', 0, 1, ']')                                                  \
-    /* Contact floor (issue 14, item 2): min_size is a share of the scene's diagonal, so a large room is     \
-       meshed coarsely everywhere, also where a small object stands on a large face (a monitor's 6 cm stand  \
-       on a desk, whose light just in front of the stand sets the stand's). With k > 0, a face that a face   \
-       of another object comes within twice its own size of may be cut down to k times that size (never     \
-       below 1 mm). Off by default: on the 5k scaling office at the default epsilon 1 gives 3.18 % per face   \
-       against Cycles for twice the time, 2 gives 3.42 % for +25 % (3.97 % without; docs/scaling.md). */     \
+    /* Contact floor (issue 14, item 2): min_size is a share of the scene's diagonal, so a large room is   \
+       meshed coarsely everywhere, also where a small object stands on a large face (a monitor's 6 cm stand\
+       on a desk, whose light just in front of the stand sets the stand's). With k > 0, a face that a face \
+       of another object comes within twice its own size of may be cut down to k times that size (never    \
+       below 1 mm). Off by default: on the 5k scaling office at the default epsilon 1 gives 3.20 % per face\
+       against Cycles for twice the time, 2 gives 3.46 % for about a third more (3.97 % without), and at   \
+       20k polygons it costs more than it buys (docs/scaling.md). */                                       \
     X(double, contactFloor, "contact_floor", 0.0, '[', 0, kNoBound, ')')                                   \
     /* Final gather: the emitters' light is evaluated exactly at every bake point (form factor times         \
        visibility) instead of read from the elements; the hierarchy carries the reflected remainder. */     \
