@@ -1,6 +1,7 @@
 // A small double-precision 3-vector. The solver works in doubles: Blender scenes can sit 1e5 from the
 // origin and hold 1e-4-sized features, which float32 cannot resolve together.
 #pragma once
+#include <algorithm>
 #include <cmath>
 
 namespace penumbra {
@@ -62,5 +63,15 @@ struct Bounds {
     Vec3 center() const { return (lo + hi) * 0.5; }
     Vec3 diagonal() const { return hi - lo; }
 };
+
+// Distance between two boxes, 0 where they overlap.
+inline double boxDistance(const Bounds& a, const Bounds& b) {
+    double d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+        double gap = std::max({0.0, b.lo[k] - a.hi[k], a.lo[k] - b.hi[k]});
+        d2 += gap * gap;
+    }
+    return std::sqrt(d2);
+}
 
 }  // namespace penumbra

@@ -43,15 +43,6 @@ double exactKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3& 
     return pointToPolygonFormFactor(y, n, e.polygonShape());
 }
 
-double boxDistance(const Bounds& a, const Bounds& b) {
-    double d2 = 0;
-    for (int k = 0; k < 3; ++k) {
-        double gap = std::max({0.0, b.lo[k] - a.hi[k], a.lo[k] - b.hi[k]});
-        d2 += gap * gap;
-    }
-    return std::sqrt(d2);
-}
-
 }  // namespace
 
 double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3* n) {

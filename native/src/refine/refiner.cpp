@@ -265,7 +265,7 @@ void Refiner::lowerFloorsAtContacts(double k) {
     }
     if (small.empty()) return;
     BoxTree tree(std::move(boxes));
-    std::vector<double> floor2(sc.polygons.size());
+    // Each face reads and writes its own floor only: the small faces' sizes come from their areas.
     parallelFor(sc.polygons.size(), resolveThreads(settings_.threads), 256, [&](size_t b, size_t e, int) {
         for (size_t p = b; p < e; ++p) {
             const ScenePolygon& sp = sc.polygons[p];
@@ -278,20 +278,13 @@ void Refiner::lowerFloorsAtContacts(double k) {
                 const ScenePolygon& sq = sc.polygons[size_t(small[size_t(i)])];
                 if (sq.object == sp.object) return;
                 double size = std::sqrt(sq.area);
-                const Bounds& qb = tree.box(i);
-                double gap2 = 0;
-                for (int a = 0; a < 3; ++a) {
-                    double g = std::max({0.0, qb.lo[a] - own.hi[a], own.lo[a] - qb.hi[a]});
-                    gap2 += g * g;
-                }
-                if (gap2 > 4 * size * size) return;
+                if (boxDistance(own, tree.box(i)) > 2 * size) return;
                 double f = std::max(k * size, kFloorLimit);
                 m2 = std::min(m2, f * f);
             });
-            floor2[p] = m2;
+            minArea_[p] = m2;
         }
     });
-    for (size_t p = 0; p < sc.polygons.size(); ++p) minArea_[p] = floor2[p];
 }
 
 bool Refiner::canSplit(int e) const {
