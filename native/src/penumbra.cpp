@@ -136,6 +136,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     Refiner refiner(h, rays, settings, counters);
     Solver solver(h, settings);
     solver.setClusterFaceVisibility(&refiner.faceVisibility());
+    solver.setSourceFaceVisibility(&refiner.sourceFaceVisibility());
     std::vector<Rgb> lightE;  // per element, renewed with the leaves
     auto attachLights = [&] {
         if (lightSet->empty()) return;

@@ -124,6 +124,22 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     return clusterFluxAt(h, clusterIndex(source), y, n);
 }
 
+Rgb everyFaceFluxAt(const Hierarchy& h, int clusterSource, const Vec3& y, const Vec3* n) {
+    const Cluster& c = h.clusters()[clusterIndex(clusterSource)];
+    return facesFluxAt(h, c.begin, c.end, y, n);
+}
+
+Rgb weightedFaceLight(const Hierarchy& h, int clusterSource, const float* weights) {
+    const Cluster& c = h.clusters()[clusterIndex(clusterSource)];
+    const std::vector<Hierarchy::FaceLight>& faces = h.faceLight();
+    Rgb sum;
+    for (int k = c.begin; k < c.end; ++k) {
+        float w = weights[k - c.begin];
+        if (w > 0 && faces[size_t(k)].lit) sum += faces[size_t(k)].B * double(w);
+    }
+    return sum;
+}
+
 bool farFieldLight(const Hierarchy& h, int clusterSource, const Vec3& ballCenter, double ballRadius,
                    FarFieldLight& out) {
     const ClusterTree& ct = h.clusters();

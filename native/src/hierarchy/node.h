@@ -20,6 +20,12 @@ uint64_t nodeKey(const Hierarchy& h, int node);
 // shares among its faces by their own cosines.
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n);
 
+// A cluster source's light at y summed over every face below it, each face by its own kernel.
+Rgb everyFaceFluxAt(const Hierarchy& h, int clusterSource, const Vec3& y, const Vec3* n);
+// The light of a cluster source's faces with each face's kernel given: sum of B_k weights[k], k counting the
+// faces below it in the cluster tree's order.
+Rgb weightedFaceLight(const Hierarchy& h, int clusterSource, const float* weights);
+
 // A cluster source's light over a ball of receiving points that all lie in its far field, as one linear
 // map of the direction: where every normal class of its faces is turned toward the whole ball or away
 // from all of it, the sum over classes of flux_m max(0, n_m . u) is (sum over the classes turned toward

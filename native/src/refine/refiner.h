@@ -48,12 +48,22 @@ public:
     // The faces' shares of the partly seen links into clusters that were kept rather than opened; the
     // solver reads them (Solver::setClusterFaceVisibility).
     const ClusterFaceVisibility& faceVisibility() const { return faceVis_; }
+    // The near cluster sources linked into elements face by face: each face's form factor times its visible
+    // share, keyed by (receiving element, source cluster); the solver reads them (setSourceFaceVisibility).
+    const ClusterFaceVisibility& sourceFaceVisibility() const { return srcFaceVis_; }
 
 private:
     // Records each face's visible share of `s` for the cluster receiver `r`; false when the cluster is too
     // large for that and must be opened.
     bool shareByFaces(int r, int s);
     ClusterFaceVisibility faceVis_;
+    // A near cluster source s into element r as one link whose light is summed face by face, each face weighted
+    // by its own form factor and visible share (recorded in srcFaceVis_); l.V = 0 when no ray gets through.
+    // False when faces turned toward r got no ray to cast (the pair is then opened).
+    bool shareSourceByFaces(int r, int s, Link& l);
+    // A cluster small enough for shareSourceByFaces, without emitters.
+    bool sharesFaces(int s) const;
+    ClusterFaceVisibility srcFaceVis_;
     std::vector<Link> linkFacePairs(Progress* progress);
     std::vector<Link> linkFromRoot(Progress* progress);
     void refine(int r, int s, std::vector<Link>& out);

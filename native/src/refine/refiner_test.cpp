@@ -142,20 +142,20 @@ TEST(Refiner, AReflectorsFirstPassLinksAreProvisionalUntilTheNextPassJudgesThemW
     // One pass only: no later pass to estimate again, so every link takes its full rays.
     s.refinePasses = 1;
     Refined once(t, s);
-    for (const Link& l : once.links) EXPECT_GE(l.Fspread, 0.0f);
+    for (const Link& l : once.links) EXPECT_FALSE(provisional(l));
     s.refinePasses = 3;
     Refined r(t, s);
-    // The first of several passes: a reflector's cluster links are provisional (Link::Fspread < 0, 4 rays), an
-    // emitter's never; and the same links cost fewer rays for it.
-    size_t provisional = 0;
+    // The first of several passes: a reflector's cluster links are provisional (Link::Fspread = kProvisional, 4
+    // rays), an emitter's never; and the same links cost fewer rays for it.
+    size_t marked = 0;
     for (const Link& l : r.links) {
-        if (!(l.Fspread < 0)) continue;
-        ++provisional;
+        if (!provisional(l)) continue;
+        ++marked;
         EXPECT_TRUE(isClusterNode(l.receiver) || isClusterNode(l.source));
         bool emits = !isClusterNode(l.source) && maxComponent(r.scene.polygons[(*r.h)[size_t(l.source)].polygon].emission) > 0;
         EXPECT_FALSE(emits);
     }
-    EXPECT_GT(provisional, 10u);
+    EXPECT_GT(marked, 10u);
     EXPECT_LT(r.counters.values().at("rays_cluster"), once.counters.values().at("rays_cluster"));
     // The next pass, with light on every reflector: no link stays provisional, and those whose bound is now
     // over an eighth of the threshold were made again (fewer of the first pass's links remain as they were).
@@ -172,13 +172,13 @@ TEST(Refiner, AReflectorsFirstPassLinksAreProvisionalUntilTheNextPassJudgesThemW
     bool changed = false;
     again.rerefine(links, nullptr, changed);
     EXPECT_TRUE(changed);
-    for (const Link& l : links) EXPECT_GE(l.Fspread, 0.0f);
+    for (const Link& l : links) EXPECT_FALSE(provisional(l));
     // Where the bound is now within an eighth of the threshold the first pass's estimate stays as it was (a link
     // hidden from its 4 rays is dropped: it carries nothing); where it is more, the pair is made again with the
     // full 16 rays at least.
     size_t kept = 0, redone = 0;
     for (const Link& l : r.links) {
-        if (!(l.Fspread < 0)) continue;
+        if (!provisional(l)) continue;
         Link judged = l;
         judged.Fspread = 0;
         if (again.linkError(judged) > 0.125 * again.threshold()) {

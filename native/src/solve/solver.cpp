@@ -23,6 +23,15 @@ void Solver::prepareClusters(const std::vector<Link>& links) {
         for (size_t c = 0; c < ct.size(); ++c)
             for (int a = ct[int(c)].parent; a >= 0; a = ct[a].parent) ++clusterDepth_[c];
     }
+    // Links into elements from near cluster sources taken face by face: each face's weight (form factor times
+    // visible share), found once per solve rather than per sweep.
+    linkSourceWeights_.assign(links.size() - intoClusters, nullptr);
+    if (srcFaceVis_ && !srcFaceVis_->empty())
+        for (size_t i = intoClusters; i < links.size(); ++i)
+            if (sourceShared(links[i]))
+                linkSourceWeights_[i - intoClusters] =
+                    srcFaceVis_->find(nodeKey(h_, links[i].receiver), nodeKey(h_, links[i].source));
+    intoClusters_ = intoClusters;
     for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
         int r = links[groupStart_[g]].receiver;
         if (!isClusterNode(r)) break;
@@ -54,7 +63,9 @@ void Solver::gather(const std::vector<Link>& links) {
             Rgb sum;
             for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
                 const Link& l = links[i];
-                if (isClusterNode(l.source))
+                if (const float* w = linkSourceWeights_[i - intoClusters_])
+                    sum += unoccluded_ ? everyFaceFluxAt(h_, l.source, re.center, &n) : weightedFaceLight(h_, l.source, w);
+                else if (isClusterNode(l.source))
                     sum += fluxAt(h_, l.source, re.center, &n) * (unoccluded_ ? 1.0 : double(l.V));
                 else
                     sum += h_[l.source].B * double(unoccluded_ ? l.Fmean : l.F());

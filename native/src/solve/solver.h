@@ -37,6 +37,9 @@ public:
     // opened (Refiner::faceVisibility); a face below such a link takes its own share instead of the
     // link's V. Must outlive the solve.
     void setClusterFaceVisibility(const ClusterFaceVisibility* v) { faceVis_ = v; }
+    // The weights (form factor times visible share) of the faces of near cluster sources linked into elements
+    // face by face (Refiner::sourceFaceVisibility). Must outlive the solve.
+    void setSourceFaceVisibility(const ClusterFaceVisibility* v) { srcFaceVis_ = v; }
     // Per element: irradiance from the scene's lamps and world (LightSet::leafIrradiance), reflected by
     // the leaves like gathered light; null or empty without lights. Must outlive the solve.
     void setLightIrradiance(const std::vector<Rgb>* e) { lightE_ = e && !e->empty() ? e : nullptr; }
@@ -80,6 +83,9 @@ private:
     const std::vector<Rgb>* lightE_ = nullptr;
     const ClusterFaceVisibility* faceVis_ = nullptr;
     std::vector<const float*> linkFaceV_;  // per link into a cluster: its faces' shares, or null
+    const ClusterFaceVisibility* srcFaceVis_ = nullptr;
+    size_t intoClusters_ = 0;  // links into clusters, which sort first
+    std::vector<const float*> linkSourceWeights_;  // per link into an element: its source's face weights, or null
     std::vector<int> clusterDepth_;        // steps from the root cluster
 };
 
