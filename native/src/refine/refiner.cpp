@@ -659,7 +659,13 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
             return;
         }
     }
-    if (apart && sourceFar && receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
+    // Into a cluster receiver small enough to share what it receives by its faces' own visibility, such a
+    // source is linked as a far one is: each receiving face then gathers it face by face (fluxAt) with its
+    // own share, from rays drawn toward that face (shareByFaces). Opened, it made a quarter of the 20k
+    // office's links (a desk's cluster linked to each ceiling tile above it).
+    const bool nearShared = !sourceFar && settings_.sourceShares && isClusterNode(ri) && sharesFaces(si) &&
+                            h_.clusters()[clusterIndex(ri)].end - h_.clusters()[clusterIndex(ri)].begin <= kMaxSharedFaces;
+    if (apart && (sourceFar || nearShared) && receiverRho(ri) * fluxBound(h_, si, rb) <= threshold_) {
         Link l;
         if (estimateCluster(ri, si, l)) {
             // A transfer that no ray gets through is kept with V = 0: it adds nothing to the solve, but
@@ -672,7 +678,7 @@ void Refiner::refineCluster(int ri, int si, std::vector<Link>& out,
             // shadows inside it: a partly hidden cluster would light the inside of a sealed box. Each
             // face takes its own visible share of the source instead (a few rays per face); a cluster
             // too large for that is opened, down to faces whose own links see their own visibility.
-            if (!isClusterNode(ri) || l.V >= 1 || shareByFaces(ri, si)) {
+            if (!isClusterNode(ri) || l.V >= 1 || shareByFaces(ri, si, nearShared)) {
                 keep(l, out);
                 return;
             }
@@ -795,7 +801,7 @@ bool Refiner::sampleNode(int node, const Vec3& toward, bool receiver, uint64_t s
     return true;
 }
 
-bool Refiner::shareByFaces(int ri, int si) {
+bool Refiner::shareByFaces(int ri, int si, bool nearSource) {
     // Opening such a cluster made half the links of the 5k office at epsilon 0.002 (each face then linked on
     // its own, with 16 rays, often through more opened sub-clusters); the link's whole transfer is within
     // the threshold already, so what each face needs is only its own share, and a few rays give it without
@@ -810,12 +816,12 @@ bool Refiner::shareByFaces(int ri, int si) {
     uint64_t seed = nodeKey(h_, ri) ^ (nodeKey(h_, si) * 0x9E3779B97F4A7C15ull) ^ 0x5bd1e995ull;
     // A cluster source is drawn by the light it sends toward the receiver's centre, once for all its faces
     // (toward each face's own centre it cost |r| x |s| per link, 11 % of the 10k office's first pass); the
-    // source is in its far field, so the directions differ little.
+    // source is in its far field, so the directions differ little. A near source is drawn toward each face.
     thread_local NodeSampler sampler;
     const bool clusterSource = isClusterNode(si);
     // None of its faces turned toward the receiver's centre: every share stays 0, as when each face's own
     // draw found none.
-    const bool anySource = !clusterSource || buildSampler(si, nodeCenter(h_, ri), false, sampler);
+    const bool anySource = !clusterSource || nearSource || buildSampler(si, nodeCenter(h_, ri), false, sampler);
     // Every face's rays are cast together: one face's few rays alone filled a quarter of a 16-wide packet
     // (an Embree packet costs nearly the same with 4 lanes as with 16).
     thread_local std::vector<Vec3> from, to;
@@ -831,10 +837,12 @@ bool Refiner::shareByFaces(int ri, int si) {
         const Element& e = h_[p];
         Vec3 toFace[kFaceRays];
         uint64_t faceSeed = seed + uint64_t(j) * 7919u;
-        if (clusterSource)
+        if (clusterSource) {
+            if (nearSource && !buildSampler(si, e.center, false, sampler)) continue;
             drawFromSampler(sampler, faceSeed, kFaceRays, toFace);
-        else if (!sampleNode(si, e.center, false, faceSeed, kFaceRays, toFace))
+        } else if (!sampleNode(si, e.center, false, faceSeed, kFaceRays, toFace)) {
             continue;
+        }
         Rng rng(seed ^ (uint64_t(j) + 1) * 0xBF58476D1CE4E5B9ull);
         for (int i = 0; i < kFaceRays; ++i) {
             Vec3 f = e.pointAt((i % 2 + rng.next()) / 2, (i / 2 % 2 + rng.next()) / 2) + sp.normal * lift_;

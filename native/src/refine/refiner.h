@@ -54,8 +54,9 @@ public:
 
 private:
     // Records each face's visible share of `s` for the cluster receiver `r`; false when the cluster is too
-    // large for that and must be opened.
-    bool shareByFaces(int r, int s);
+    // large for that and must be opened. nearSource: s is a cluster within its far field of r, its points
+    // drawn toward each face rather than once toward r's centre.
+    bool shareByFaces(int r, int s, bool nearSource = false);
     ClusterFaceVisibility faceVis_;
     // A near cluster source s into element r as one link whose light is summed face by face, each face weighted
     // by its own form factor and visible share (recorded in srcFaceVis_); l.V = 0 when no ray gets through.

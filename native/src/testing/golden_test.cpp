@@ -153,9 +153,9 @@ TestScene cardRoom() {
 // by its parts' light three levels down (refiner.cpp): litRoom's links 175068 -> 220981, rays 4.35M -> 4.96M.
 // Stop 36: the parts' shares take the sweeps' element kernel (elementKernel: a disc estimate beyond four widths,
 // exact within): litRoom's links 220981 -> 220976, rays -0.003 %.
-// Stop 37: near cluster sources into elements are linked face by face (source_shares): litRoom's first pass
-// links its three clusters so, the later passes open them as their light grows: links 220976 -> 219105, rays
-// -0.9 %.
+// Stop 37: near cluster sources whose transfer is within epsilon are not opened (source_shares): litRoom's first
+// pass links its three clusters so, the later passes open them as their light grows: links 220976 -> 219105,
+// rays -0.9 %.
 TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
     expectGolden(testing::litRoom(), goldenSettings(), {"284f06aaca05d46f", "ca77dc4b6bbca552",
                     "polygons=13 elements=35569 leaves=26680 links=219105 rays=4912509 shafts_clear=3543 "

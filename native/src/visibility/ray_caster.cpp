@@ -156,8 +156,13 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
         bool inside = true;
         for (int k = 0; k < n && inside; ++k) {
             Hit h = firstHit(pts[k] + p.normal * lift, p.normal, far);
-            // Met from behind: the ray started inside a closed surface. Nothing met: open sky.
-            inside = h.polygon >= 0 && dot(scene.polygons[size_t(h.polygon)].normal, p.normal) > 0;
+            // Met from behind: the ray started inside a closed surface. Nothing met: open sky. A two-sided
+            // face's back copy follows it and shares its triangles: met from behind, it was its copy's front
+            // (a ceiling over a flipped two-sided floor was taken for buried, and no cluster link lit it).
+            size_t hp = size_t(h.polygon);
+            bool twoSided = h.polygon >= 0 && hp + 1 < scene.polygons.size() && !scene.polygons[hp + 1].occludes &&
+                            scene.polygons[hp + 1].input == scene.polygons[hp].input;
+            inside = h.polygon >= 0 && !twoSided && dot(scene.polygons[hp].normal, p.normal) > 0;
         }
         out[i] = inside;
     }

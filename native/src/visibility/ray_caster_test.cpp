@@ -60,6 +60,27 @@ TEST(RayCaster, BuriedFacesAreTheOnesInsideSolids) {
     EXPECT_EQ(got, expect);
 }
 
+TEST(RayCaster, AFaceOverATwoSidedFacesBackIsNotBuried) {
+    // A floor whose normals point down, two-sided (its back copy faces up and shares its triangles), under a
+    // ceiling that faces down: the ceiling's rays meet the floor's triangles from behind, which is the back
+    // copy's front, not the inside of a solid. One-sided, the same ceiling is taken for buried (open below
+    // only through the floor's back).
+    for (bool twoSided : {true, false}) {
+        testing::TestScene t;
+        t.names = {"Floor", "Ceiling", "Lamp"};
+        Rgb grey{0.5, 0.5, 0.5};
+        double l = 0.1;  // a lamp that shines down, which takes no part in the rays
+        t.quad({-l, -l, 1}, {-l, l, 1}, {l, l, 1}, {l, -l, 1}, {}, {10, 10, 10}, kLightOnly, 2);
+        t.quad({-1, -1, 0}, {-1, 1, 0}, {1, 1, 0}, {1, -1, 0}, grey, {}, twoSided ? kEmitBack : 0, 0);
+        t.quad({-1, -1, 1.5}, {-1, 1, 1.5}, {1, 1, 1.5}, {1, -1, 1.5}, grey, {}, 0, 1);
+        Scene sc = buildScene(t.input());
+        ASSERT_EQ(sc.polygons.size(), twoSided ? 4u : 3u);
+        RayCaster rays(sc);
+        std::vector<char> buried = rays.buriedFaces(sc, 1e-5 * sc.diagonal);
+        EXPECT_EQ(int(buried.back()), twoSided ? 0 : 1) << "two-sided " << twoSided;
+    }
+}
+
 TEST(RayCaster, ClusterLinksLeaveBuriedFacesDark) {
     // Cluster links cannot see shadows inside a cluster: a leg's top flush under the table must still get
     // exactly nothing (blender_tests/test_stability.py checks the office's desks, where cluster links lit
