@@ -165,8 +165,9 @@ SETTINGS = (
             group="refinement", blender={"min": 0.05, "max": 1.0, "precision": 2, "step": 5}),
     Setting("source_shares", bool, True, None, "Shared Near Groups",
             "Let a nearby group of objects whose bounced light on a patch or a small group is small send it over "
-            "one link, each face with its own share of visibility, instead of one link per face: about a quarter "
-            "less time and fewer links on a large furnished room, as exact against Cycles", group="refinement"),
+            "one link, each face with its own share of visibility, instead of one link per face: a quarter to a "
+            "third less time and about half the links on a large furnished room, as exact against Cycles",
+            group="refinement"),
     Setting("contact_floor", float, 0.0, ("[", 0.0, INF, ")"), "Contact Floor",
             "0: the smallest patch is Min Size everywhere. More: a face that a smaller object touches or nearly "
             "touches (a stand on a desk, a chair leg on the floor) may be cut down to this many times that "

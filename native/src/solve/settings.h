@@ -89,7 +89,7 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        into an element as one link whose light is summed face by face, each face with its own form factor   \
        and visible share (4 rays a face); into a cluster receiver of up to 64 faces as a far source is,      \
        each receiving face with its own share. Opened instead, it made a link per face (16 rays each). On by \
-       default since stop 37: the 50k office at epsilon 0.002 takes 26 % less time and 26 % fewer links;    \
+       default since stop 37: the 50k office at epsilon 0.002 takes 25 % less time and 46 % fewer links;    \
        against Cycles the five benchmark rooms moved by -0.15 to +0.07 points per face (docs/scaling.md). */  \
     X(bool, sourceShares, "source_shares", true, '[', 0, 1, ']')                                           \
     /* Contact floor (issue 14, item 2): min_size is a share of the scene's diagonal, so a large room is   \
