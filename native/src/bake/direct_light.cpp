@@ -30,8 +30,7 @@ DirectLight::DirectLight(const Scene& sc, const RayCaster& rays, int maxRays,
     for (size_t i = 0; i < sc.polygons.size(); ++i) {
         const ScenePolygon& p = sc.polygons[i];
         if (!(maxComponent(p.emission) > 0)) continue;
-        // Back sides are added right after their front and share its triangles (scene.cpp).
-        int occluder = !p.occludes && i > 0 && sc.polygons[i - 1].input == p.input ? int(i) - 1 : int(i);
+        int occluder = int(occluderOf(sc.polygons, i));
         Emitter* group = nullptr;
         for (Emitter& e : emitters_) {
             const ScenePolygon& q = sc.polygons[size_t(e.polygons[0])];

@@ -124,11 +124,6 @@ Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n) {
     return clusterFluxAt(h, clusterIndex(source), y, n);
 }
 
-Rgb everyFaceFluxAt(const Hierarchy& h, int clusterSource, const Vec3& y, const Vec3* n) {
-    const Cluster& c = h.clusters()[clusterIndex(clusterSource)];
-    return facesFluxAt(h, c.begin, c.end, y, n);
-}
-
 Rgb weightedFaceLight(const Hierarchy& h, int clusterSource, const float* weights) {
     const Cluster& c = h.clusters()[clusterIndex(clusterSource)];
     const std::vector<Hierarchy::FaceLight>& faces = h.faceLight();

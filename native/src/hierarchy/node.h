@@ -20,8 +20,6 @@ uint64_t nodeKey(const Hierarchy& h, int node);
 // shares among its faces by their own cosines.
 Rgb fluxAt(const Hierarchy& h, int source, const Vec3& y, const Vec3* n);
 
-// A cluster source's light at y summed over every face below it, each face by its own kernel.
-Rgb everyFaceFluxAt(const Hierarchy& h, int clusterSource, const Vec3& y, const Vec3* n);
 // The light of a cluster source's faces with each face's kernel given: sum of B_k weights[k], k counting the
 // faces below it in the cluster tree's order.
 Rgb weightedFaceLight(const Hierarchy& h, int clusterSource, const float* weights);

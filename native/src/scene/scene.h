@@ -96,6 +96,16 @@ struct ScenePolygon {
     double minEdge = 0;
 };
 
+// A two-sided face's back copy is added right after its front and shares its triangles (buildScene): the
+// polygon whose triangles a ray meets for polygon i, and whether polygon i has such a copy.
+inline bool isBackCopy(const std::vector<ScenePolygon>& polys, size_t i) {
+    return i > 0 && !polys[i].occludes && polys[i - 1].input == polys[i].input;
+}
+inline size_t occluderOf(const std::vector<ScenePolygon>& polys, size_t i) { return isBackCopy(polys, i) ? i - 1 : i; }
+inline bool hasBackCopy(const std::vector<ScenePolygon>& polys, size_t i) {
+    return i + 1 < polys.size() && isBackCopy(polys, i + 1);
+}
+
 inline Bounds polygonBox(const ScenePolygon& p) {
     Bounds b;
     for (int k = 0; k < p.geom.n; ++k) b.extend(p.geom.v[k]);

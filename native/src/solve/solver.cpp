@@ -63,8 +63,10 @@ void Solver::gather(const std::vector<Link>& links) {
             Rgb sum;
             for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i) {
                 const Link& l = links[i];
+                // A source taken face by face holds no emitter (Refiner::sharesFaces): in the unoccluded gather,
+                // which reads emission only, it gives nothing either way.
                 if (const float* w = linkSourceWeights_[i - intoClusters_])
-                    sum += unoccluded_ ? everyFaceFluxAt(h_, l.source, re.center, &n) : weightedFaceLight(h_, l.source, w);
+                    sum += weightedFaceLight(h_, l.source, w);
                 else if (isClusterNode(l.source))
                     sum += fluxAt(h_, l.source, re.center, &n) * (unoccluded_ ? 1.0 : double(l.V));
                 else

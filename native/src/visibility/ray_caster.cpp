@@ -160,9 +160,7 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
             // face's back copy follows it and shares its triangles: met from behind, it was its copy's front
             // (a ceiling over a flipped two-sided floor was taken for buried, and no cluster link lit it).
             size_t hp = size_t(h.polygon);
-            bool twoSided = h.polygon >= 0 && hp + 1 < scene.polygons.size() && !scene.polygons[hp + 1].occludes &&
-                            scene.polygons[hp + 1].input == scene.polygons[hp].input;
-            inside = h.polygon >= 0 && !twoSided && dot(scene.polygons[hp].normal, p.normal) > 0;
+            inside = h.polygon >= 0 && !hasBackCopy(scene.polygons, hp) && dot(scene.polygons[hp].normal, p.normal) > 0;
         }
         out[i] = inside;
     }
