@@ -185,6 +185,7 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
     }
     if (s.contactFloor > 0) lowerFloorsAtContacts(s.contactFloor);
     lift_ = 1e-5 * sc.diagonal;
+    touched_ = rays.touchedFaces(sc, lift_);
     if (!h.clusters().empty()) {
         const ClusterTree& ct = h.clusters();
         clusterEmits_.assign(ct.size(), 0);
@@ -491,10 +492,21 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
         return s.pointAt(rng.next(), rng.next());
     };
     int counted = 0, seen = 0, open = 0;
-    // With batches, each ray counts by the point-to-point kernel cos cos / r^2 of its ends, so V is the
-    // visible share of the form factor rather than of the areas: they differ where the source is
-    // large beside its receiver (a whole lamp linked to a small element under a lattice shade).
+    // Each ray counts by the point-to-point kernel cos cos / r^2 of its ends, so V is the visible share of
+    // the form factor rather than of the areas. They differ wherever what is hidden lies nearer or farther
+    // than what is seen (a whole lamp linked to a small element under a lattice shade), and the areas' share
+    // does not add up: a closed 2 m room with two boxes on its floor, at epsilon 0.002 without clustering,
+    // absorbed 97.3 % of its lamp's light with the areas' share and 98.0 % with the form factor's (all of
+    // it is exact; native/python/test_energy_balance.py).
     double wSeen = 0, wAll = 0, w2Seen = 0, w2All = 0;
+    // A reflector's radiosity is its mean over the whole element, and a part inside a closed surface (the
+    // floor under a box standing on it) receives nothing: what the element reflects leaves from the rest.
+    // A ray from that part meets the solid's inside and would cut the light a second time, so it does not
+    // count. Only faces that something touches can have such a part (touched_); an emitter's buried part
+    // gives no light, so its rays count. The 5k scaling office against Cycles at epsilon 0.002: bias -1.83 %
+    // with neither, -1.42 % with the kernel's share, -1.26 % with both; the closed room with clustering kept
+    // 97.6 % of its light before and 98.8 % with both.
+    const bool fromInside = touched_[size_t(s.polygon)] && !emits(si);
     int cast = 0;
     for (int round = 0; cast < budget; ++round) {
         if (round > 0) m = 16, n = std::min(256, budget - cast);
@@ -524,15 +536,14 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
             double len = length(d);
             open += vis[i];
             if (!(len > 0) || dot(ur, d) <= kGrazing * len || -dot(us, d) <= kGrazing * len) continue;
+            if (!vis[i] && fromInside && rays_.metFromBehind(sc, to[i], d * (-1.0 / len), len)) continue;
             ++counted;
             seen += vis[i];
-            if (batches > 0) {  // the kernel weights only serve the batched estimate
-                double len2 = len * len, w = dot(ur, d) * -dot(us, d) / (len2 * len2);
-                wAll += w;
-                wSeen += vis[i] ? w : 0.0;
-                w2All += w * w;
-                w2Seen += vis[i] ? w * w : 0.0;
-            }
+            double len2 = len * len, w = dot(ur, d) * -dot(us, d) / (len2 * len2);
+            wAll += w;
+            wSeen += vis[i] ? w : 0.0;
+            w2All += w * w;
+            w2Seen += vis[i] ? w * w : 0.0;
         }
         // Enough rounds once the estimate's standard error, times the light the link would carry
         // unshadowed, is within the threshold: the weighted share's variance is
@@ -544,7 +555,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
             if (transfer * std::sqrt(std::max(0.0, var)) <= threshold_) break;
         }
     }
-    if (batches > 0 && wAll > 0)
+    if (wAll > 0)
         l.V = float(wSeen / wAll);
     else
         l.V = float(counted > 0 ? double(seen) / counted : double(open) / double(cast));

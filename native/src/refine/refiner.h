@@ -120,6 +120,7 @@ private:
     double threshold_;
     std::vector<double> minArea_;  // per scene polygon: no element of it is split at or below this area
     double lift_;  // ray end points are lifted off their surfaces by this much
+    std::vector<char> touched_;  // per scene polygon: RayCaster::touchedFaces
     int strata_;   // visibility rays = strata_^2
     bool firstPass_ = false;
     Counters& counters_;

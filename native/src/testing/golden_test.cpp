@@ -156,37 +156,37 @@ TestScene cardRoom() {
 // Stop 37: near cluster sources whose transfer is within epsilon are not opened (source_shares): litRoom's first
 // pass links its three clusters so, the later passes open them as their light grows: links 220976 -> 219105,
 // rays -0.9 %.
+// Stop 38: a link's visibility is the form factor's visible share, not the areas', and a reflector's rays from its
+// part inside a solid do not count (the energy a closed room keeps, native/python/test_energy_balance.py):
+// litRoom's links 219105 -> 230867, rays +4 %.
 TEST(Golden, LitRoomIsBitIdenticalToTheRecordedRun) {
-    expectGolden(testing::litRoom(), goldenSettings(), {"284f06aaca05d46f", "ca77dc4b6bbca552",
-                    "polygons=13 elements=35569 leaves=26680 links=219105 rays=4912509 shafts_clear=3543 "
-                    "clusters=3 cluster_links=0 convolution_links=0 convolution_tried=3 convolution_texels=0 "
+    expectGolden(testing::litRoom(), goldenSettings(), {"bdfa7c60d637ef79", "78ce5b75b85a3276",
+                    "polygons=13 elements=35709 leaves=26785 links=230867 rays=5112429 shafts_clear=3752 clusters=3 "
+                    "cluster_links=0 convolution_links=0 convolution_tried=3 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=2 refused.too_coarse=1 "
-                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=15 refine_passes=3 "
-                    "max_error=0x0p+0 "
-                    "residual=0x1.5ebc3ad667adbp-14 converged=1 warnings=0"});
+                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=17 refine_passes=3 "
+                    "max_error=0x0p+0 residual=0x1.786e4ced4c6d8p-16 converged=1 warnings=0"});
 }
 
 TEST(Golden, CardRoomWithConvolutionIsBitIdenticalToTheRecordedRun) {
-    expectGolden(cardRoom(), goldenSettings(), {"2525730cd17dfee7", "511129fa82115f37",
-                    "polygons=8 elements=29396 leaves=22049 links=208689 rays=3553984 shafts_clear=390 "
-                    "clusters=1 cluster_links=0 convolution_links=1 convolution_tried=2 convolution_texels=147456 "
+    expectGolden(cardRoom(), goldenSettings(), {"23902e85cc9db838", "11362fd7237e9e14",
+                    "polygons=8 elements=29444 leaves=22085 links=210450 rays=3569216 shafts_clear=408 clusters=1 "
+                    "cluster_links=0 convolution_links=1 convolution_tried=2 convolution_texels=147456 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=0 "
                     "refused.too_slow=0 refused.self_shadow=0 gather_emitters=1 iterations=15 refine_passes=3 "
-                    "max_error=0x0p+0 "
-                    "residual=0x1.ec00f6b019e2bp-15 converged=1 warnings=0"});
+                    "max_error=0x0p+0 residual=0x1.716d9274d5463p-14 converged=1 warnings=0"});
 }
 
 TEST(Golden, LitRoomWithoutFinalGatherOrClustersIsBitIdenticalToTheRecordedRun) {
     Settings s = goldenSettings();
     s.finalGather = false;
     s.clustering = false;
-    expectGolden(testing::litRoom(), s, {"b889cb136f39f9e1", "34bdd7c4732b0ae8",
-                    "polygons=13 elements=35561 leaves=26674 links=218990 rays=4913216 shafts_clear=3551 "
-                    "clusters=0 cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
+    expectGolden(testing::litRoom(), s, {"2c25657bf8f4f47e", "ad4fb8d95f2c7014",
+                    "polygons=13 elements=35693 leaves=26773 links=230353 rays=5106096 shafts_clear=3735 clusters=0 "
+                    "cluster_links=0 convolution_links=0 convolution_tried=2 convolution_texels=0 "
                     "refused.intruder=0 refused.invalid=0 refused.no_blocker=1 refused.too_coarse=1 "
-                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=0 iterations=15 refine_passes=3 "
-                    "max_error=0x0p+0 "
-                    "residual=0x1.6a93e3fd31156p-14 converged=1 warnings=0"});
+                    "refused.too_slow=0 refused.self_shadow=0 gather_emitters=0 iterations=16 refine_passes=3 "
+                    "max_error=0x0p+0 residual=0x1.ba35678a5c17fp-16 converged=1 warnings=0"});
 }
 
 }  // namespace

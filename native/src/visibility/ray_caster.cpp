@@ -154,15 +154,41 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
         pts[n++] = c;
         for (int k = 0; k < p.geom.n && n < 5; ++k) pts[n++] = (c + p.geom.v[k]) * 0.5;
         bool inside = true;
-        for (int k = 0; k < n && inside; ++k) {
-            Hit h = firstHit(pts[k] + p.normal * lift, p.normal, far);
-            // Met from behind: the ray started inside a closed surface. Nothing met: open sky. A two-sided
-            // face's back copy follows it and shares its triangles: met from behind, it was its copy's front
-            // (a ceiling over a flipped two-sided floor was taken for buried, and no cluster link lit it).
-            size_t hp = size_t(h.polygon);
-            inside = h.polygon >= 0 && !hasBackCopy(scene.polygons, hp) && dot(scene.polygons[hp].normal, p.normal) > 0;
-        }
+        for (int k = 0; k < n && inside; ++k) inside = metFromBehind(scene, pts[k] + p.normal * lift, p.normal, far);
         out[i] = inside;
+    }
+    return out;
+}
+
+bool RayCaster::metFromBehind(const Scene& scene, const Vec3& origin, const Vec3& dir, double far) const {
+    // Nothing met is open sky. A two-sided face's back copy follows its front and shares its triangles: met
+    // from behind, they were the copy's front (a ceiling over a flipped two-sided floor was taken for buried,
+    // and no cluster link lit it).
+    Hit h = firstHit(origin, dir, far);
+    if (h.polygon < 0) return false;
+    size_t hp = size_t(h.polygon);
+    return !hasBackCopy(scene.polygons, hp) && dot(scene.polygons[hp].normal, dir) > 0;
+}
+
+std::vector<char> RayCaster::touchedFaces(const Scene& scene, double lift) const {
+    std::vector<char> out(scene.polygons.size(), 0);
+    for (size_t i = 0; i < scene.polygons.size(); ++i) {
+        const ScenePolygon& p = scene.polygons[i];
+        Bounds near = polygonBox(p);
+        near.lo = near.lo - Vec3{lift, lift, lift};
+        near.hi = near.hi + Vec3{lift, lift, lift};
+        const Vec3 origin = p.geom.v[0];
+        const size_t front = occluderOf(scene.polygons, i);
+        bool touched = false;
+        occluders_.query([&](const Bounds& node) { return !touched && overlaps(node, near); },
+                         [&](int b) {
+                             size_t q = size_t(occluderPolygon_[size_t(b)]);
+                             if (touched || q == front || !overlaps(occluders_.box(b), near)) return;
+                             const ScenePolygon& sq = scene.polygons[q];
+                             for (int k = 0; k < sq.geom.n && !touched; ++k)
+                                 touched = dot(sq.geom.v[k] - origin, p.normal) > lift;
+                         });
+        out[i] = touched;
     }
     return out;
 }

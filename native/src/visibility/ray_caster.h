@@ -49,6 +49,13 @@ public:
     // is always met from behind. Such a face sees nothing; cluster links, which cannot see shadows inside
     // a cluster, must not light it.
     std::vector<char> buriedFaces(const Scene& scene, double lift) const;
+    // Per polygon: some other occluding polygon comes within `lift` of its box and reaches in front of it (a
+    // box or a chair leg standing on a floor tile, a wall meeting it at a corner). Only such a polygon can
+    // have points of its front inside a closed surface (metFromBehind from them); elsewhere the test is skipped.
+    std::vector<char> touchedFaces(const Scene& scene, double lift) const;
+    // The first occluding polygon along the ray is met from behind: the origin lies inside a closed surface
+    // (a two-sided face's back copy shares its front's triangles, so meeting those from behind is not that).
+    bool metFromBehind(const Scene& scene, const Vec3& origin, const Vec3& dir, double far) const;
     // The first occluding polygon along the ray (origin, unit dir) within `far`, and its distance;
     // polygon -1 when nothing is met.
     struct Hit {

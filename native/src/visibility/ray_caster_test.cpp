@@ -60,6 +60,24 @@ TEST(RayCaster, BuriedFacesAreTheOnesInsideSolids) {
     EXPECT_EQ(got, expect);
 }
 
+TEST(RayCaster, TouchedFacesAreTheOnesSomethingStandsOnOrMeets) {
+    // Only a touched face can have part of its front inside a solid, so only there does the refiner test a
+    // reflector's blocked rays for starting inside one (Refiner::estimateVisibility).
+    int legTop = 0, boxBottom = 0;
+    auto t = tableScene(&legTop, &boxBottom);
+    Scene sc = buildScene(t.input());
+    RayCaster rays(sc);
+    std::vector<char> touched = rays.touchedFaces(sc, 1e-5 * sc.diagonal);
+    const int tableBottom = 96, tableTop = 97;  // after six walls of 16 faces
+    for (int tile : {5, 6, 9, 10}) {
+        EXPECT_TRUE(touched[size_t(tile)]) << "a leg stands on floor tile " << tile;
+        EXPECT_FALSE(touched[size_t(16 + tile)]) << "nothing reaches ceiling tile " << tile;
+    }
+    EXPECT_TRUE(touched[size_t(tableTop)]) << "the box stands on the table";
+    EXPECT_TRUE(touched[size_t(tableBottom)]) << "the legs meet the top's underside";
+    EXPECT_FALSE(touched[size_t(boxBottom + 1)]) << "the box's top is free";
+}
+
 TEST(RayCaster, AFaceOverATwoSidedFacesBackIsNotBuried) {
     // A floor whose normals point down, two-sided (its back copy faces up and shares its triangles), under a
     // ceiling that faces down: the ceiling's rays meet the floor's triangles from behind, which is the back
