@@ -112,7 +112,9 @@ def test_near_sources_taken_face_by_face_give_the_same_light(make):
     0.14 % in the mean) and the links must be fewer. On the tiled Cornell box it moves by more (1.01 % RMS, 0.56 %
     in the mean), toward the fine face-by-face solve: there the opened links' ceiling was 1.2 % dark. So there it
     may be no less exact than the opened links against that solve (measured 4.43 against 4.58 % RMS, -0.25
-    against -0.80 % in the mean)."""
+    against -0.80 % in the mean). Stop 38 (visibility by the form factor, rays from inside solids not counted, faces
+    drawn by their parts' light): the office 0.31 % RMS and 0.09 % in the mean apart, the Cornell box 0.74 % and 0.33 %,
+    against the fine solve 4.39 against 4.47 % RMS, -0.12 against -0.45 % in the mean."""
     scene = make()
     pts, nrm = _probe(scene)
     out = {}

@@ -739,6 +739,7 @@ struct Refiner::NodeSampler {
     std::vector<double> cdf;
     std::vector<int> polys;
     double total = 0;
+    bool byLight = false;  // a source's faces drawn by their light: within each face, too
 };
 
 bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSampler& out) const {
@@ -773,7 +774,8 @@ bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSamp
         }
     }
     if (total <= 0) return false;
-    if (lightTotal > 0) {
+    out.byLight = lightTotal > 0;
+    if (out.byLight) {
         out.cdf.swap(lightCdf);
         total = lightTotal;
     }
@@ -787,8 +789,14 @@ void Refiner::drawFromSampler(const NodeSampler& s, uint64_t seed, int n, Vec3* 
     for (int i = 0; i < n; ++i) {
         double u = (i + rng.next()) / n * s.total;
         size_t j = std::min(size_t(std::lower_bound(s.cdf.begin(), s.cdf.end(), u) - s.cdf.begin()), s.cdf.size() - 1);
-        const Element& e = h_[s.polys[j]];
-        pts[i] = e.pointAt(rng.next(), rng.next()) + sc.polygons[s.polys[j]].normal * lift_;
+        // Within a face drawn by its light, its point follows its parts' light too (a floor face half in a
+        // desk's shadow, which the desk also hides from the ceiling): the 5k office's ceiling kept 0.3 % more
+        // of its light (native/python/test_energy_balance.py's measure), bias against Cycles at epsilon 0.002
+        // -1.23 -> -1.11 %.
+        const int p = s.polys[j];
+        double a = rng.next(), b = rng.next();
+        Vec3 q = s.byLight && hasSettledChildren(p) ? pointByLight(p, rng.next(), a, b) : h_[p].pointAt(a, b);
+        pts[i] = q + sc.polygons[size_t(p)].normal * lift_;
     }
 }
 
