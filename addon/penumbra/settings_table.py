@@ -190,8 +190,8 @@ SETTINGS = (
     # Budgets: the solver stops with BudgetExceeded before taking the memory. Not in the panel.
     Setting("max_elements", int, 2000000, ("[", 1, 2**30, "]"), "Max Elements",
             "Quadtree elements, about 400 bytes each at the peak"),
-    Setting("max_links", int, 30000000, ("[", 1, INF, "]"), "Max Links",
-            "Links, about 72 bytes each at the peak"),
+    Setting("max_links", int, 60000000, ("[", 1, INF, "]"), "Max Links",
+            "Links, about 72 bytes each at the peak (the 100k-polygon office at the default epsilon: 34M in 2.1 GB)"),
     Setting("max_face_pairs", float, 1e9, ("[", 1.0, INF, "]"), "Max Face Pairs",
             "Receiving x sending faces visited at the top level with clustering off"),
     Setting("max_texels", int, 8192 * 8192, ("[", 1, INF, "]"), "Max Texels",
