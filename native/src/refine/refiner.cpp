@@ -491,7 +491,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
         }
         return s.pointAt(rng.next(), rng.next());
     };
-    int counted = 0, seen = 0, open = 0;
+    int open = 0;
     // Each ray counts by the point-to-point kernel cos cos / r^2 of its ends, so V is the visible share of
     // the form factor rather than of the areas. They differ wherever what is hidden lies nearer or farther
     // than what is seen (a whole lamp linked to a small element under a lattice shade), and the areas' share
@@ -537,8 +537,6 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
             open += vis[i];
             if (!(len > 0) || dot(ur, d) <= kGrazing * len || -dot(us, d) <= kGrazing * len) continue;
             if (!vis[i] && fromInside && rays_.metFromBehind(sc, to[i], d * (-1.0 / len), len)) continue;
-            ++counted;
-            seen += vis[i];
             double len2 = len * len, w = dot(ur, d) * -dot(us, d) / (len2 * len2);
             wAll += w;
             wSeen += vis[i] ? w : 0.0;
@@ -555,10 +553,8 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
             if (transfer * std::sqrt(std::max(0.0, var)) <= threshold_) break;
         }
     }
-    if (wAll > 0)
-        l.V = float(wSeen / wAll);
-    else
-        l.V = float(counted > 0 ? double(seen) / counted : double(open) / double(cast));
+    // Every ray that counts has a positive weight: with none, the share of all rays cast.
+    l.V = float(wAll > 0 ? wSeen / wAll : double(open) / double(cast));
 }
 
 double Refiner::gradientError(const Link& l) const {
