@@ -45,6 +45,9 @@ public:
     // Per normal class: sum of B * area of its faces, refreshed from the polygons' radiosities by
     // updateFlux before every gather and refinement pass.
     const std::vector<Rgb>& classFlux() const { return classFlux_; }
+    // Nothing below cluster c has light to give (every class flux zero), as of the last updateFlux: its light
+    // is zero everywhere, and a gather need not walk it.
+    bool dark(int c) const { return dark_[size_t(c)] != 0; }
     // polygonRadiosity(p): the current mean radiosity of polygon p.
     template <class F>
     void updateFlux(const Scene& scene, F&& polygonRadiosity) {
@@ -57,6 +60,12 @@ public:
                 classFlux_[size_t(cls[k - cl.begin])] += polygonRadiosity(p) * scene.polygons[size_t(p)].area;
             }
         }
+        dark_.assign(clusters_.size(), 1);
+        for (size_t c = 0; c < clusters_.size(); ++c)
+            for (int m = clusters_[c].classBegin; m < clusters_[c].classEnd && dark_[c]; ++m) {
+                const Rgb& f = classFlux_[size_t(m)];
+                dark_[c] = f.x == 0 && f.y == 0 && f.z == 0;
+            }
     }
 
 private:
@@ -68,6 +77,7 @@ private:
     std::vector<int> owner_;
     std::vector<Vec3> classNormal_;
     std::vector<Rgb> classFlux_;
+    std::vector<char> dark_;
     std::vector<size_t> memberStart_;  // per cluster: where its faces' class indices start
     std::vector<int> memberClass_;     // class index of each face of each cluster
     bool planarGroups_ = false;

@@ -91,8 +91,7 @@ Rgb clusterFluxAt(const Hierarchy& h, int ci, const Vec3& y, const Vec3* n) {
     Vec3 d = y - c.center;
     double r2 = length2(d);
     if (r2 <= 0) return {};
-    double r = std::sqrt(r2);
-    if (c.radius > kFarField * r) {  // not in its far field (predicates.h)
+    if (c.radius * c.radius > kFarField * kFarField * r2) {  // not in its far field (predicates.h)
         // Near a cluster its faces see y from different directions, and a face that the centre's
         // direction puts at grazing incidence may still light y: its own faces one by one, and each
         // child cluster by the same rule, so by normal class where y lies in the child's far field,
@@ -103,14 +102,16 @@ Rgb clusterFluxAt(const Hierarchy& h, int ci, const Vec3& y, const Vec3* n) {
         for (int k = 0; k < c.numChildren; ++k) sum += clusterFluxAt(h, c.firstChild + k, y, n);
         return sum;
     }
-    Vec3 u = d / r;
+    Vec3 u = d * (1 / std::sqrt(r2));
     double cy = n ? -dot(*n, u) : 1.0;
     if (cy <= 0) return {};
+    // Without a branch on each class's side: which classes face y is as good as random from one call to the
+    // next, and a class turned away adds 0.
     Rgb sum;
-    for (int m = c.classBegin; m < c.classEnd; ++m) {
-        double cm = dot(ct.classNormal()[size_t(m)], u);
-        if (cm > 0) sum += ct.classFlux()[size_t(m)] * cm;
-    }
+    const Vec3* normal = ct.classNormal().data();
+    const Rgb* flux = ct.classFlux().data();
+    for (int m = c.classBegin; m < c.classEnd; ++m)
+        sum += flux[m] * std::max(0.0, dot(normal[m], u));
     return sum * (cy / (M_PI * r2));
 }
 

@@ -65,6 +65,7 @@ void Solver::gather(const std::vector<Link>& links) {
                 const Link& l = links[i];
                 // A source taken face by face holds no emitter (Refiner::sharesFaces): in the unoccluded gather,
                 // which reads emission only, it gives nothing either way.
+                if (dark(l.source)) continue;
                 if (const float* w = linkSourceWeights_[i - intoClusters_])
                     sum += weightedFaceLight(h_, l.source, w);
                 else if (isClusterNode(l.source))
@@ -117,6 +118,7 @@ void Solver::distributeClusters(const std::vector<Link>& links, std::vector<Rgb>
                 const float* faceV = linkFaceV_[i];
                 const float V = links[i].V;
                 const int source = links[i].source;
+                if (dark(source)) continue;  // gives nothing (every reflector, in directIrradiance's gathers)
                 // A cluster source far from the whole receiving cluster is one linear map for all its faces.
                 FarFieldLight far;
                 const bool linear = isClusterNode(source) && farFieldLight(h_, source, ct[c].center, ct[c].radius, far);

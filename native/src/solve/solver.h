@@ -69,6 +69,12 @@ private:
     // Irradiance each polygon takes from the links of the clusters above it, into `down` (one per root,
     // zeroed by the caller: polygons outside the cluster tree are left alone).
     void distributeClusters(const std::vector<Link>& links, std::vector<Rgb>& down) const;
+    // The node has no light to give as of the last updateClusterFlux (its light is zero at every point).
+    bool dark(int node) const {
+        if (isClusterNode(node)) return h_.clusters().dark(clusterIndex(node));
+        const Rgb& B = h_[size_t(node)].B;
+        return B.x == 0 && B.y == 0 && B.z == 0;
+    }
 
     std::vector<size_t> groupStart_;  // link index where each receiver's run begins; set per solve
     std::vector<std::pair<size_t, size_t>> clusterLinks_;  // link range of each receiving cluster
