@@ -74,15 +74,18 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 # 44875719, iterations 17 -> 16; the radiance 0.45 % RMS apart, its mean +0.35 % (the light that had been lost).
 # Then a cluster source's face drawn by its light gives its point by its parts' light too (drawFromSampler): links
 # 1034216 -> 1038341, rays 44875719 -> 44936119, iterations 16 -> 18; the radiance 0.21 % RMS apart, its mean -0.02 %.
+# Stop 39: the solves between refinement passes stop at an estimated remaining error of 0.1 (penumbra.cpp,
+# kPassTolerance): links 1038341 -> 1018531, rays 44936119 -> 44271114, iterations 18 -> 12; the radiance 0.16 % RMS
+# apart, its mean +0.02 %.
 EXPECTED_COUNTS = {
-    "polygons": 999, "elements": 38659, "leaves": 28904, "links": 1038341, "rays": 44936119, "rays_batched": 24538688,
-    "rays_cluster": 1070487, "shafts_clear": 14559, "shared_cluster_links": 11909, "source_shared_links": 5545,
-    "clusters": 291, "cluster_links": 27839, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 274, "convolution_texels": 0,
+    "polygons": 999, "elements": 38659, "leaves": 28904, "links": 1018531, "rays": 44271114, "rays_batched": 24253376,
+    "rays_cluster": 1081722, "shafts_clear": 14385, "shared_cluster_links": 12152, "source_shared_links": 5606,
+    "clusters": 291, "cluster_links": 27830, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 274, "convolution_texels": 0,
     "convolution_max_error": 0.0,
     "convolution_refused": {"intruder": 151, "invalid": 0, "no_blocker": 4, "too_coarse": 119, "too_slow": 0,
                             "self_shadow": 0},
-    "gather_emitters": 4, "iterations": 18, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
-    "residual": 3.950943635313414e-05, "converged": True, "warnings": 0}
+    "gather_emitters": 4, "iterations": 12, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
+    "residual": 6.632394169431368e-05, "converged": True, "warnings": 0}
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "golden_office.npz")
 RTOL = 1e-5
 
