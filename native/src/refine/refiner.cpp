@@ -192,6 +192,12 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
         for (size_t c = 0; c < ct.size(); ++c)
             for (int k = ct[int(c)].begin; k < ct[int(c)].end && !clusterEmits_[c]; ++k)
                 clusterEmits_[c] = maxComponent(sc.polygons[size_t(ct.polygons()[size_t(k)])].emission) > 0;
+        sampleFaces_.reserve(ct.polygons().size());
+        for (int p : ct.polygons()) {
+            const ScenePolygon& sp = sc.polygons[size_t(p)];
+            sampleFaces_.push_back({h_[size_t(p)].center, sp.normal, sp.area, sendsLight(sp),
+                                    receivesLight(sp) && !h_.buried(p)});
+        }
     }
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
     if (s.convolution) sites_ = std::make_unique<ConvolutionSites>(h, rays, s, counters);
@@ -736,10 +742,10 @@ struct Refiner::NodeSampler {
     std::vector<int> polys;
     double total = 0;
     bool byLight = false;  // a source's faces drawn by their light: within each face, too
+    std::vector<double> lightCdf;  // buildSampler's, kept to spare an allocation per cluster link sampled
 };
 
 bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSampler& out) const {
-    const Scene& sc = h_.scene();
     const ClusterTree& ct = h_.clusters();
     const Cluster& c = ct[clusterIndex(node)];
     // A source's points are drawn by the light each face sends toward `toward` (radiosity x area x
@@ -749,22 +755,23 @@ bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSamp
     // (far_field 0.5) the 5k office's bias against Cycles went from -1.1 to -3.0 % at epsilon 0.002 by
     // area and to -1.3 % by light; at the defaults it went from -1.4 to -0.55 %. Before any radiosity is
     // known (every face dark) they go by area.
-    std::vector<double> lightCdf;
+    std::vector<double>& lightCdf = out.lightCdf;
+    lightCdf.clear();
     out.cdf.clear();
     out.polys.clear();
     double total = 0, lightTotal = 0;
+    const std::vector<Hierarchy::FaceLight>& light = h_.faceLight();  // B as of the last updateClusterFlux
     for (int k = c.begin; k < c.end; ++k) {
-        int p = ct.polygons()[k];
-        const ScenePolygon& sp = sc.polygons[p];
-        if (receiver ? !receivesLight(sp) || h_.buried(p) : !sends(p)) continue;
-        Vec3 d = toward - h_[p].center;
-        double w = sp.area * std::max(0.0, dot(sp.normal, normalize(d)));
+        const SampleFace& f = sampleFaces_[size_t(k)];
+        if (receiver ? !f.receives : !f.sends) continue;
+        Vec3 d = toward - f.center;
+        double w = f.area * std::max(0.0, dot(f.normal, normalize(d)));
         if (w <= 0) continue;
         total += w;
         out.cdf.push_back(total);
-        out.polys.push_back(p);
+        out.polys.push_back(ct.polygons()[size_t(k)]);
         if (!receiver) {
-            const Rgb& b = h_[p].B;
+            const Rgb& b = light[size_t(k)].B;
             lightTotal += w * (b.x + b.y + b.z) / std::max(length2(d), 1e-300);
             lightCdf.push_back(lightTotal);
         }
