@@ -249,5 +249,37 @@ TEST(ClusterTransfer, FarFieldLightEqualsFluxAtOverItsBallAndRefusesWhatItCannot
     EXPECT_FALSE(farFieldLight(h, clusterNode(box), b.center, 0.1, far));
 }
 
+// A gather skips a source cluster marked dark (Solver::dark): the mark must hold exactly when nothing below has
+// light, since a lit face under a cluster marked dark would lose its light with no other sign.
+TEST(ClusterTransfer, DarkMeansNoLightBelowAndClearsUpTheTreeFromOneLitFace) {
+    auto t = clutteredRoom();
+    Scene sc = buildScene(t.input());
+    Hierarchy h(sc, size_t(-1), true);
+    for (size_t i = 0; i < h.numRoots(); ++i) h[i].B = Rgb{};
+    h.updateClusterFlux();
+    const ClusterTree& ct = h.clusters();
+    for (size_t c = 0; c < ct.size(); ++c) EXPECT_TRUE(ct.dark(int(c))) << c;
+    int box = firstBoxCluster(sc, ct);
+    ASSERT_GE(box, 0);
+    // One face of the box lit, in one channel only.
+    int lit = ct.polygons()[size_t(ct[box].begin)];
+    h[size_t(lit)].B = Rgb{0, 0, 0.25};
+    h.updateClusterFlux();
+    std::set<int> above;
+    for (int c = ct.owner(lit); c >= 0; c = ct[c].parent) above.insert(c);
+    EXPECT_TRUE(above.count(box));
+    for (size_t c = 0; c < ct.size(); ++c) EXPECT_EQ(ct.dark(int(c)), above.count(int(c)) == 0) << c;
+    // What a dark cluster gives is zero at any point, near or far; the lit box gives some light in front of its face.
+    Vec3 n{0, 0, -1};
+    for (size_t c = 0; c < ct.size(); ++c)
+        if (ct.dark(int(c))) {
+            EXPECT_EQ(maxComponent(fluxAt(h, clusterNode(int(c)), ct[int(c)].center + Vec3{0.1, 0.1, 0.2}, &n)), 0.0);
+            EXPECT_EQ(maxComponent(fluxAt(h, clusterNode(int(c)), Vec3{0, 0, 2.5}, &n)), 0.0);
+        }
+    const Vec3 front = h[size_t(lit)].center + sc.polygons[size_t(lit)].normal * 0.3;
+    const Vec3 back = -sc.polygons[size_t(lit)].normal;
+    EXPECT_GT(fluxAt(h, clusterNode(box), front, &back).z, 0.0);
+}
+
 }  // namespace
 }  // namespace penumbra
