@@ -164,7 +164,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     // 0.002 took 17 sweeps where it took 22. At 0.1 (stop 39): the 20k office 18 -> 12 sweeps and 2.7 % fewer
     // links (a radiosity still short of its last bounces asks for fewer reflector links), 100k office
     // 142 -> 115 CPU s of the bake call with the change before it; against Cycles the five benchmark rooms at
-    // epsilon 0.002 and 0.0002 moved by -0.03 to +0.02 points per face, the 20k and 100k offices 4.00 ->
+    // epsilon 0.002 and 0.0002 moved by -0.03 to 0.00 points per face, the 20k and 100k offices 4.00 ->
     // 3.98 % and 6.85 -> 6.84 % (docs/scaling.md).
     constexpr double kPassTolerance = 0.1;
     bool loose = settings.refinePasses > 1;
