@@ -171,6 +171,8 @@ def worker(args):
                       **{k: rep[k] for k in ("elements", "leaves", "links", "rays", "shafts_clear", "iterations",
                                              "residual", "converged", "refine_passes", "warnings")
                          if k in rep})
+        if "min_edge" in rep:  # the solver's own floor (min_size of the smaller of the diagonal and 35 pieces)
+            result["min_size_m"] = float(rep["min_edge"])
         # The answer must be usable, not just fast: sample the radiance at every face centre.
         import numpy as np
         v, p = scene["vertices"], scene["polygons"]

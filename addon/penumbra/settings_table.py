@@ -91,7 +91,8 @@ SETTINGS = (
             "Smaller gives softer, more exact shadows and costs more time and memory",
             group="refinement", blender={"min": 1e-7, "max": 1.0, "precision": 5, "step": 0.01}),
     Setting("min_size", float, 0.01, ("(", 0.0, 1.0, ")"), "Smallest Patch",
-            "Surfaces are never cut finer than this fraction of the scene's size (its bounding-box diagonal). "
+            "Surfaces are never cut finer than this fraction of the scene's size (its bounding-box diagonal, "
+            "or 35 times its median piece where that is smaller, so a large hall is cut as finely as a room). "
             "Smaller resolves sharper shadow edges and costs more memory",
             group="refinement", blender={"min": 1e-5, "max": 0.5, "precision": 4, "step": 0.01}),
     Setting("visibility_rays", int, 16, ("[", 1, 256, "]"), "Shadow Rays",

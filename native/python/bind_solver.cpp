@@ -160,6 +160,7 @@ py::dict reportDict(const Report& r, const std::vector<std::string>& names) {
         sub[py::str(name.substr(slash + 1))] = v;
     }
     d["convolution_max_error"] = r.convolutionMaxError;
+    d["min_edge"] = r.minEdge;
     py::dict est, perObject;
     for (size_t o = 0; o < r.objectErrorEstimate.size() && o < names.size(); ++o)
         if (r.objectErrorEstimate[o] >= 0) perObject[py::str(names[o])] = r.objectErrorEstimate[o];

@@ -77,6 +77,29 @@ def test_min_edge_resolves_an_umbra_finer_than_the_scenes_min_size():
     assert fine.report["elements"] > 20 * coarse.report["elements"]
 
 
+def test_min_size_follows_the_pieces_when_they_are_small_beside_the_scene():
+    """min_size is a share of the smaller of the diagonal and 35 median pieces (faces joined by shared corners):
+    four grey 0.2 m cards far out on the 100 m floor make the median piece 0.28 m, so the floor may be cut to
+    0.099 m instead of 1.41 m, and the blocker's umbra (which the diagonal's floor loses, the test above) comes
+    out without any min_edge. The cards stand 30 m away: they change the floor, not the light on the line."""
+    verts, polys, refl, emis, flags, obj, names = plane_scene(100.0)
+    cards = [_quad(30.0 + 2 * k, 30.0, BLOCK, 0.3) for k in range(4)]
+    verts = np.vstack([verts, np.array([p for f in cards for p in f], np.float32)])
+    polys = np.vstack([polys, 16 + np.arange(16, dtype=np.int32).reshape(4, 4)])
+    refl = np.vstack([refl, np.full((4, 3), RHO, np.float32)])
+    emis = np.vstack([emis, np.zeros((4, 3), np.float32)])
+    flags = np.concatenate([flags, np.zeros(4, np.uint8)])
+    obj = np.concatenate([obj, np.full(4, 3, np.int32)])
+    sol = _native.solve(verts, polys, refl, emis, flags, obj, names + ["Cards"], settings={"epsilon": 0.002})
+    assert sol.report["min_edge"] == pytest.approx(0.01 * 35 * 2 * BLOCK * np.sqrt(2), rel=1e-6)
+    assert _error(sol) < 0.25
+    centre = sol.radiance(POINTS[60:61], NORMALS[60:61])[0, 0]
+    assert centre < 0.05 * EXACT.max()
+    # Without the cards the floor's own size decides (one piece besides the black blocker): the diagonal's floor.
+    alone = _native.solve(*plane_scene(100.0), settings={"epsilon": 0.002})
+    assert alone.report["min_edge"] == pytest.approx(0.01 * np.sqrt(100.0 ** 2 * 2 + LAMP_Z ** 2), rel=1e-6)
+
+
 def test_an_open_floor_is_refined_only_where_a_small_lamp_lights_it():
     """Epsilon's scale was bounded by 200 times the mean exitance the lamp gives the whole 100 m floor, so tiny
     that every element within ~15 m of a 20 cm lamp was cut to the 5 cm floor (38,912 elements); the bound is

@@ -134,6 +134,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     if (!lightSet->empty()) rep.seconds["lights"] = clock.lap();
 
     Refiner refiner(h, rays, settings, counters);
+    rep.minEdge = refiner.minEdge();
     Solver solver(h, settings);
     solver.setClusterFaceVisibility(&refiner.faceVisibility());
     solver.setSourceFaceVisibility(&refiner.sourceFaceVisibility());

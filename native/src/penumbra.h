@@ -26,6 +26,7 @@ struct Report {
     std::map<std::string, size_t> counts;
     size_t count(const std::string& name) const { return counts.at(name); }  // throws for an unknown name
     double convolutionMaxError = 0;  // the largest blocker error E_rr (texels) among the convolution links
+    double minEdge = 0;  // the smallest element edge of faces without their own min_edge (Refiner::minEdge)
     // Estimated relative RMS error of the reflected radiance (solve/error_estimate.h), overall and per
     // object (by object index, -1 where an object receives nothing).
     double errorEstimate = 0;

@@ -35,6 +35,9 @@ public:
     // Radiosity error a link can cause on its receiver (W/m^2, max over colour channels).
     double linkError(const Link& l) const;
     double threshold() const { return threshold_; }  // the radiosity error a link may carry
+    // The smallest element edge of faces without their own min_edge: min_size times the smaller of the scene's
+    // diagonal and kPieceScale median pieces (refiner.cpp).
+    double minEdge() const { return minEdge_; }
     // The part of it that comes from a partly hidden source's radiosity varying below it.
     double sourceDeviationError(const Link& l) const;
     // Convolution links made so far, in (receiver, source) order; they stand for whole transfers and
@@ -118,6 +121,7 @@ private:
     const RayCaster& rays_;
     Settings settings_;
     double threshold_;
+    double minEdge_ = 0;
     std::vector<double> minArea_;  // per scene polygon: no element of it is split at or below this area
     double lift_;  // ray end points are lifted off their surfaces by this much
     std::vector<char> touched_;  // per scene polygon: RayCaster::touchedFaces

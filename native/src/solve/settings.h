@@ -25,7 +25,8 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
 #define PENUMBRA_SETTINGS(X)                                                                               \
     /* max radiosity error of a link, relative to the brightest emitter */                                  \
     X(double, epsilon, "epsilon", 0.0002, '(', 0, kNoBound, ')')                                           \
-    /* smallest element edge, relative to the scene's bounding-box diagonal */                              \
+    /* smallest element edge, relative to the smaller of the scene's bounding-box diagonal and 35 median     \
+       pieces (faces joined by shared corners; refiner.cpp): a hall grows, its furniture does not */        \
     X(double, minSize, "min_size", 0.01, '(', 0, 1, ')')                                                   \
     /* rays per link estimate (rounded to a square number of strata) */                                     \
     X(int, visibilityRays, "visibility_rays", 16, '[', 1, 256, ']')                                        \
