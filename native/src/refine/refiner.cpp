@@ -17,16 +17,6 @@
 
 namespace penumbra {
 namespace {
-struct CornerHash {
-    size_t operator()(const std::array<uint64_t, 3>& k) const {
-        uint64_t h = k[0] * 0x9E3779B97F4A7C15ull;
-        h ^= k[1] + 0xBF58476D1CE4E5B9ull + (h << 6) + (h >> 2);
-        h ^= k[2] + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
-        return size_t(h);
-    }
-};
-}  // namespace
-namespace {
 
 PENUMBRA_COUNTER(kRays, "rays");                 // visibility rays cast
 // A partly seen link whose receiver is at min_size gets up to kRaysPerShare rays per threshold's worth
@@ -162,6 +152,15 @@ RayCaster::HalfSpace lowestPlane(const Element& e, const Vec3& n) {
 
 namespace {
 
+struct CornerHash {
+    size_t operator()(const std::array<uint64_t, 3>& k) const {
+        uint64_t h = k[0] * 0x9E3779B97F4A7C15ull;
+        h ^= k[1] + 0xBF58476D1CE4E5B9ull + (h << 6) + (h >> 2);
+        h ^= k[2] + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
+        return size_t(h);
+    }
+};
+
 // The median size (box diagonal) of the scene's pieces: receiving polygons joined where they share a corner, so a
 // desk's top, a chair's leg, a wall are each one piece, however finely meshed. 0 without receivers.
 double medianPieceSize(const Scene& sc) {
@@ -175,7 +174,9 @@ double medianPieceSize(const Scene& sc) {
         while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
         return x;
     };
-    // Corners shared by index in the input are equal to the bit once recentred: join polygons by exact corner.
+    // Joined by corner position, not index: equal input corners are equal to the bit once recentred, so a mesh whose
+    // vertices are split per face (flat shading, UV seams) still makes one piece (the 5k office with every face's
+    // corners its own: the same floor and links).
     std::unordered_map<std::array<uint64_t, 3>, int, CornerHash> firstAt;
     firstAt.reserve(poly.size() * 2);
     for (size_t i = 0; i < poly.size(); ++i) {
