@@ -1,9 +1,7 @@
 #include "refine/refiner.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
-#include <cstring>
 #include <string>
 #include <unordered_map>
 
@@ -148,59 +146,21 @@ RayCaster::HalfSpace lowestPlane(const Element& e, const Vec3& n) {
     return {e.v[0] + n * lo, n};
 }
 
-}  // namespace
-
-namespace {
-
-struct CornerHash {
-    size_t operator()(const std::array<uint64_t, 3>& k) const {
-        uint64_t h = k[0] * 0x9E3779B97F4A7C15ull;
-        h ^= k[1] + 0xBF58476D1CE4E5B9ull + (h << 6) + (h >> 2);
-        h ^= k[2] + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
-        return size_t(h);
-    }
-};
-
-// The median size (box diagonal) of the scene's pieces: receiving polygons joined where they share a corner, so a
-// desk's top, a chair's leg, a wall are each one piece, however finely meshed. 0 without receivers.
+// The median size (box diagonal) of the scene's pieces: its connected surfaces (ScenePolygon::surface, faces joined
+// through shared corners, a corner repeated at the same position counting as one), so a desk's top, a chair's leg,
+// a wall are each one piece however finely meshed, and a mesh whose vertices are split per face (flat shading, UV
+// seams) is still one. Only receiving faces count. 0 without receivers.
 double medianPieceSize(const Scene& sc) {
-    std::vector<int> poly;
-    for (size_t p = 0; p < sc.polygons.size(); ++p)
-        if (receivesLight(sc.polygons[p])) poly.push_back(int(p));
-    if (poly.empty()) return 0;
-    std::vector<int> parent(poly.size());
-    for (size_t i = 0; i < parent.size(); ++i) parent[i] = int(i);
-    auto find = [&](int x) {
-        while (parent[size_t(x)] != x) x = parent[size_t(x)] = parent[size_t(parent[size_t(x)])];
-        return x;
-    };
-    // Joined by corner position, not index: equal input corners are equal to the bit once recentred, so a mesh whose
-    // vertices are split per face (flat shading, UV seams) still makes one piece (the 5k office with every face's
-    // corners its own: the same floor and links).
-    std::unordered_map<std::array<uint64_t, 3>, int, CornerHash> firstAt;
-    firstAt.reserve(poly.size() * 2);
-    for (size_t i = 0; i < poly.size(); ++i) {
-        const Polygon& g = sc.polygons[size_t(poly[i])].geom;
-        for (int k = 0; k < g.n; ++k) {
-            std::array<uint64_t, 3> key;
-            const double xyz[3] = {g.v[k].x, g.v[k].y, g.v[k].z};
-            std::memcpy(key.data(), xyz, sizeof(xyz));
-            auto [it, fresh] = firstAt.try_emplace(key, int(i));
-            if (!fresh) {
-                int a = find(int(i)), b = find(it->second);
-                if (a != b) parent[size_t(a)] = b;
-            }
-        }
-    }
     std::unordered_map<int, Bounds> pieces;
-    for (size_t i = 0; i < poly.size(); ++i) {
-        Bounds& b = pieces[find(int(i))];
-        const Polygon& g = sc.polygons[size_t(poly[i])].geom;
-        for (int k = 0; k < g.n; ++k) b.extend(g.v[k]);
+    for (const ScenePolygon& sp : sc.polygons) {
+        if (!receivesLight(sp)) continue;
+        Bounds& b = pieces[sp.surface];
+        for (int k = 0; k < sp.geom.n; ++k) b.extend(sp.geom.v[k]);
     }
+    if (pieces.empty()) return 0;
     std::vector<double> sizes;
     sizes.reserve(pieces.size());
-    for (const auto& [root, b] : pieces) sizes.push_back(length(b.diagonal()));
+    for (const auto& [surface, b] : pieces) sizes.push_back(length(b.diagonal()));
     std::nth_element(sizes.begin(), sizes.begin() + long(sizes.size() / 2), sizes.end());
     return sizes[sizes.size() / 2];
 }
@@ -263,11 +223,10 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
         for (size_t c = 0; c < ct.size(); ++c)
             for (int k = ct[int(c)].begin; k < ct[int(c)].end && !clusterEmits_[c]; ++k)
                 clusterEmits_[c] = maxComponent(sc.polygons[size_t(ct.polygons()[size_t(k)])].emission) > 0;
-        sampleFaces_.reserve(ct.polygons().size());
+        faceRoles_.reserve(ct.polygons().size());
         for (int p : ct.polygons()) {
             const ScenePolygon& sp = sc.polygons[size_t(p)];
-            sampleFaces_.push_back({h_[size_t(p)].center, sp.normal, sp.area, sendsLight(sp),
-                                    receivesLight(sp) && !h_.buried(p)});
+            faceRoles_.push_back({sendsLight(sp), receivesLight(sp) && !h_.buried(p)});
         }
     }
     strata_ = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
@@ -831,10 +790,12 @@ bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSamp
     out.cdf.clear();
     out.polys.clear();
     double total = 0, lightTotal = 0;
-    const std::vector<Hierarchy::FaceLight>& light = h_.faceLight();  // B as of the last updateClusterFlux
+    // The faces' centre, normal, area and light (as of the last updateClusterFlux) from their compact copy.
+    const std::vector<Hierarchy::FaceLight>& faces = h_.faceLight();
     for (int k = c.begin; k < c.end; ++k) {
-        const SampleFace& f = sampleFaces_[size_t(k)];
-        if (receiver ? !f.receives : !f.sends) continue;
+        const FaceRole& role = faceRoles_[size_t(k)];
+        if (receiver ? !role.receives : !role.sends) continue;
+        const Hierarchy::FaceLight& f = faces[size_t(k)];
         Vec3 d = toward - f.center;
         double w = f.area * std::max(0.0, dot(f.normal, normalize(d)));
         if (w <= 0) continue;
@@ -842,7 +803,7 @@ bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSamp
         out.cdf.push_back(total);
         out.polys.push_back(ct.polygons()[size_t(k)]);
         if (!receiver) {
-            const Rgb& b = light[size_t(k)].B;
+            const Rgb& b = f.B;
             lightTotal += w * (b.x + b.y + b.z) / std::max(length2(d), 1e-300);
             lightCdf.push_back(lightTotal);
         }

@@ -139,16 +139,14 @@ private:
     };
     std::vector<LightNode> lightNodes_;
     std::vector<char> clusterEmits_;  // per cluster: some face below emits
-    // The cluster tree's faces in its order, as buildSampler reads them for every cluster link it samples:
-    // contiguous, where each face's element and polygon cost two scattered cache lines (buildSampler and the
-    // predicates it called were 8 % of the 50k office's CPU).
-    struct SampleFace {
-        Vec3 center, normal;
-        double area;
+    // What each face of the cluster tree (in its order) may be drawn as by buildSampler, which reads the rest of the
+    // face from Hierarchy::faceLight: contiguous, where each face's element and polygon cost two scattered cache
+    // lines (buildSampler and the predicates it called were 8 % of the 50k office's CPU).
+    struct FaceRole {
         bool sends;     // sendsLight
         bool receives;  // receivesLight, and not buried
     };
-    std::vector<SampleFace> sampleFaces_;
+    std::vector<FaceRole> faceRoles_;
     std::unique_ptr<ConvolutionSites> sites_;  // null with convolution off
     mutable std::mutex convMutex_;
     std::vector<ConvolutionLink> conv_;
