@@ -86,7 +86,13 @@ private:
     struct NodeSampler;
     // A cluster's faces as sampleNode draws them toward `toward`; false when none faces it.
     bool buildSampler(int cluster, const Vec3& toward, bool receiver, NodeSampler& out) const;
-    void drawFromSampler(const NodeSampler& s, uint64_t seed, int n, Vec3* pts) const;
+    // faces (optional): the polygon each point was drawn from.
+    void drawFromSampler(const NodeSampler& s, uint64_t seed, int n, Vec3* pts, int* faces = nullptr) const;
+    // The weight of a ray from x to y, a point of face yFace drawn by `s` toward `toward`, in a face's visible
+    // share: the point-to-point kernel over the density the point was drawn with, so the share is that of
+    // the light (pointKernel alone for points drawn by area).
+    double drawnWeight(const Vec3& x, const Vec3& nx, const Vec3& y, int yFace, const NodeSampler& s,
+                       const Vec3& toward) const;
     std::vector<int> children(int node, bool receiver);
     bool receives(int node) const;
     bool sends(int node) const;
