@@ -142,6 +142,7 @@ class Scorer:
 
     def score(self, maps):
         d2t = d2f = bias = rsum = 0.0
+        parts = {}
         for n, owner, ref, noise, fr, fn, keep in self.parts:
             m = owner >= 0
             d = maps[n][m][:, :3].astype(np.float64) - ref[m][:, :3]
@@ -149,10 +150,17 @@ class Scorer:
             bias += float(d.sum())
             rsum += float(ref[m][:, :3].sum())
             fp, _ = self.face_means(maps[n], owner, len(fr))
-            d2f += float(((fp[keep] - fr[keep]) ** 2).sum())
+            df2 = float(((fp[keep] - fr[keep]) ** 2).sum())
+            d2f += df2
+            # Each receiver's own figures, relative to its own light: where the error and the bias sit.
+            parts[n] = {"face": math.sqrt(df2 / max(float((fr[keep] ** 2).sum()), 1e-300)),
+                        "bias": float(d.sum()) / max(float(ref[m][:, :3].sum()), 1e-300),
+                        "share": df2}  # of the per-face error's square; made a fraction below
+        for v in parts.values():
+            v["share"] /= max(d2f, 1e-300)
         t = math.sqrt(d2t / self.ref2_texel)
         f = math.sqrt(d2f / self.ref2_face)
-        return {"texel": t, "face": f, "bias": bias / rsum,
+        return {"texel": t, "face": f, "bias": bias / rsum, "receivers": parts,
                 "texel_corrected": math.sqrt(max(t * t - self.noise_texel ** 2, 0.0)),
                 "face_corrected": math.sqrt(max(f * f - self.noise_face ** 2, 0.0))}
 
@@ -252,6 +260,9 @@ def run_scene(penumbra, name, args, penumbra_settings=None):
         log(f"{name}: Penumbra {method} eps {eps:g} min_size {min_size:g}: {row['seconds']:.2f} s, "
             f"{row['convolution_links']} convolution links, face "
             f"{100 * s['face']:.2f} %, texel {100 * s['texel']:.2f} %, bias {100 * s['bias']:+.2f} %")
+        log("    per receiver (face, bias, share): " + ", ".join(
+            f"{n} {100 * v['face']:.2f} % {100 * v['bias']:+.2f} % ({100 * v['share']:.0f} % of the error)"
+            for n, v in s["receivers"].items()))
     penumbra.clear(scene)
     jobs = {n: (UV, res, res) for n in receivers}
     samples_list = [int(x) for x in args.cycles_samples.split(",")]

@@ -9,6 +9,8 @@ two boxes standing on its floor absorbed 97.61 % of the light at epsilon 0.002 a
 scaling office 99.00 % at 0.002; then 98.80 %, 99.42 % and 99.49 %, and with a cluster source's faces drawn by their
 parts' light too (refiner.cpp, drawFromSampler) 99.21 %, 99.38 % and 99.54 %. With the boxes lifted 30 cm off the floor
 the room kept 99.7 % before, so most of what was lost was where things stand on others.
+Stop 42: a face's kernel beyond its near field is the point kernel with its second-order term rather than the disc
+estimate (hierarchy/node.cpp, faceKernel), which read oblique transfers low: 99.44 %, 99.37 % and 99.86 %.
 """
 import os
 import sys
@@ -80,9 +82,9 @@ def absorbed_over_emitted(scene, settings, m=8):
 
 
 @pytest.mark.parametrize("make, epsilon, tolerance", [
-    (_room_with_boxes, 0.002, 0.015),   # was 2.39 % short, now 0.79 %
+    (_room_with_boxes, 0.002, 0.01),    # was 2.39 % short, then 0.79 %, now 0.56 %
     (_room_with_boxes, 0.0002, 0.01),   # 1.32 %, now 0.62 %
-    (_office, 0.002, 0.0075),           # 1.00 %, now 0.46 %
+    (_office, 0.002, 0.004),            # 1.00 %, then 0.46 %, now 0.14 %
 ], ids=["boxes-0.002", "boxes-default", "office-0.002"])
 def test_a_closed_room_absorbs_the_light_its_lamps_emit(make, epsilon, tolerance):
     ratio = absorbed_over_emitted(make(), {"epsilon": epsilon})

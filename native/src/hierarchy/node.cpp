@@ -17,7 +17,15 @@ namespace {
 constexpr double kNearField2 = 16.0;  // (r / sqrt(A))^2 below which the exact form factor is used
 
 // Irradiance at (y, n) per unit radiosity of a face of `area` centred at c, lying on a plane with
-// normal en: the disc estimate, or within the near field exact() (the face's exact form factor).
+// normal en: the point kernel with its second-order term, or within the near field exact() (the face's
+// exact form factor). The term is the point kernel's expansion to second order in the offset s from the
+// centre, integrated over the face (taken as a square of its area: the integral of s s^T is A^2/12 in its
+// plane): A a (b + t (2 b - 6 b a^2 / r^2 - 2 (n . en) a)) / (pi r^4), t = A / (6 r^2), with a and b the
+// heights of y over the face's plane and of the face's centre over y's. Straight in front it is the disc's
+// A / (pi r^2 + A) to that order, but it also reads the oblique transfers the disc estimate made up to 6 %
+// too low (a wall lighting the floor beside it), light then lost at every bounce through a cluster: the
+// 5k office at epsilon 0.002 kept 99.30 % of its light with it, 98.99 % with the disc (native/python/
+// test_energy_balance.py measures the 1k office), and its bias against Cycles went from -1.19 to -0.88 %.
 template <class Exact>
 double faceKernel(const Vec3& c, const Vec3& en, double area, const Vec3& y, const Vec3* n, Exact&& exact) {
     Vec3 d = y - c;
@@ -25,11 +33,13 @@ double faceKernel(const Vec3& c, const Vec3& en, double area, const Vec3& y, con
     if (r2 <= 0) return 0;
     if (n) {
         if (r2 < kNearField2 * area) return exact();
-        // cos cos / r^2 from the unnormalised dot products: no square root and one division (the sweeps
-        // evaluate this for every face of every near cluster source at every receiving face).
+        // From the unnormalised dot products: no square root and one division (the sweeps evaluate this
+        // for every face of every near cluster source at every receiving face).
         double a = dot(en, d), b = -dot(*n, d);
         if (a <= 0 || b <= 0) return 0;
-        return area * a * b / (r2 * (M_PI * r2 + area));
+        double t = area / (6 * r2);
+        double second = b + t * (2 * b - 6 * b * a * a / r2 - 2 * dot(*n, en) * a);
+        return std::max(0.0, area * a * second / (M_PI * r2 * r2));
     }
     double cj = dot(en, d) / std::sqrt(r2);
     if (cj <= 0) return 0;

@@ -12,8 +12,9 @@ Vec3 nodeCenter(const Hierarchy& h, int node);
 // A node's identity independent of creation order (an element's or a cluster's key).
 uint64_t nodeKey(const Hierarchy& h, int node);
 
-// Irradiance at y from `source`. An element is a small emitter at its centre: B A cos cos_y /
-// (pi r^2 + A), the + A keeping it finite when r is small. A cluster emits from its centre, each
+// Irradiance at y from `source`. An element within a few of its widths of y gives its exact form factor
+// times B; farther out, the point kernel B A cos cos_y / (pi r^2) with its second-order term over the face
+// (node.cpp, faceKernel); without a receiver normal, B A cos / (pi r^2 + A). A cluster emits from its centre, each
 // normal class by its own cosine: sum over classes of (sum of B A) max(0, n_m . u) cos_y / (pi r^2),
 // which is the sum over its faces in the far field (Hierarchy::updateClusterFlux must be current).
 // Without a receiver normal (n == nullptr) cos_y is 1: the flux density that a cluster receiver then
