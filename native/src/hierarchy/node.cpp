@@ -34,8 +34,8 @@ double faceKernel(const Vec3& c, const Vec3& en, double area, const Vec3& y, con
     if (r2 <= 0) return 0;
     if (n) {
         if (r2 < kNearField2 * area) return exact();
-        // From the unnormalised dot products: no square root and one division (the sweeps evaluate this
-        // for every face of every near cluster source at every receiving face).
+        // From the unnormalised dot products, without a square root (the sweeps evaluate this for every face
+        // of every near cluster source at every receiving face).
         double a = dot(en, d), b = -dot(*n, d);
         if (a <= 0 || b <= 0) return 0;
         double t = area / (6 * r2);
