@@ -273,6 +273,7 @@ SolveResult Solver::solve(const std::vector<Link>& links, Progress* progress) {
     // cancel this one (least squares over the leaves, area-weighted, per channel since coloured walls
     // contract each channel differently): a Krylov step on the linear map, bounded by a plain sweep.
     const size_t n = h_.size();
+    const Scene& sc = h_.scene();
     std::vector<Rgb> x(n), f(n), fPrev, gPrev;
     std::vector<std::vector<Rgbf>> dF, dG;  // the last kDepth steps' changes of residual and of g(B)
     std::vector<double> w(n);
@@ -347,7 +348,10 @@ SolveResult Solver::solve(const std::vector<Link>& links, Progress* progress) {
                         const Rgbf& d = dG[size_t(j)][i];
                         B -= Rgb{gamma[j].x * d[0], gamma[j].y * d[1], gamma[j].z * d[2]};
                     }
-                    h_[i].B = Rgb{std::max(B.x, 0.0), std::max(B.y, 0.0), std::max(B.z, 0.0)};
+                    // B = E + rho H with H >= 0 bounds every solution from below; a mix can overshoot it (a
+                    // scene whose sweeps do not contract), and a run that stops on a mix would hand out
+                    // B < E: a negative reflected radiance (fuzz finding, stop 43).
+                    h_[i].B = vmax(B, sc.polygons[h_[i].polygon].emission);
                 }
                 plain = false;
             } else {
