@@ -11,6 +11,10 @@ parts' light too (refiner.cpp, drawFromSampler) 99.21 %, 99.38 % and 99.54 %. Wi
 the room kept 99.7 % before, so most of what was lost was where things stand on others.
 Stop 42: a face's kernel beyond its near field is the point kernel with its second-order term rather than the disc
 estimate (hierarchy/node.cpp, faceKernel), which read oblique transfers low: 99.44 %, 99.37 % and 99.86 %.
+Stop 43: a link kept from an earlier refinement pass is weighted again by its source's parts' present light (refiner.cpp,
+rerefine); its weights had been those of the pass that made it, or none, while the links made later into the same
+source took the parts' new light, so the receivers no longer took from each part what it sends: 99.55 %, 99.54 % and
+99.90 %; the empty room without clustering 98.92 -> 99.99 %.
 """
 import os
 import sys
@@ -25,9 +29,9 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 import scalable_scene  # noqa: E402
 
 
-def _room_with_boxes(n=4, rho=0.7):
-    """A closed 2 m room of n x n tiles a wall, every tile facing in, two boxes on the floor, a lamp under the
-    ceiling."""
+def _room_with_boxes(n=4, rho=0.7, boxes=True):
+    """A closed 2 m room of n x n tiles a wall, every tile facing in, two boxes on the floor (unless `boxes` is
+    false), a lamp under the ceiling."""
     b = Builder()
     centre = np.array([0.0, 0.0, 1.0])
     walls = (((-1, -1, 0), (2, 0, 0), (0, 2, 0), "Floor"), ((-1, -1, 2), (2, 0, 0), (0, 2, 0), "Ceiling"),
@@ -41,8 +45,9 @@ def _room_with_boxes(n=4, rho=0.7):
             for j in range(n):
                 a = o + i * u + j * v
                 b.face([a, a + u, a + u + v, a + v], name, rho=rho)
-    b.box((-0.6, -0.5, 0.0), (-0.05, 0.3, 1.2), "Tall", rho=rho)
-    b.box((0.1, -0.7, 0.0), (0.65, -0.15, 0.6), "Short", rho=rho)
+    if boxes:
+        b.box((-0.6, -0.5, 0.0), (-0.05, 0.3, 1.2), "Tall", rho=rho)
+        b.box((0.1, -0.7, 0.0), (0.65, -0.15, 0.6), "Short", rho=rho)
     b.lamp(0.0, 0.0, 1.99, 0.5, 30.0)
     keys = ("vertices", "polygons", "reflectance", "emission", "flags", "object_index", "object_names")
     return dict(zip(keys, b.arrays()))
@@ -81,14 +86,20 @@ def absorbed_over_emitted(scene, settings, m=8):
     return float((absorbed / emitted).mean())
 
 
-@pytest.mark.parametrize("make, epsilon, tolerance", [
-    (_room_with_boxes, 0.002, 0.01),    # was 2.39 % short, then 0.79 %, now 0.56 %
-    (_room_with_boxes, 0.0002, 0.01),   # 1.32 %, now 0.62 %
-    (_office, 0.002, 0.004),            # 1.00 %, then 0.46 %, now 0.14 %
-], ids=["boxes-0.002", "boxes-default", "office-0.002"])
-def test_a_closed_room_absorbs_the_light_its_lamps_emit(make, epsilon, tolerance):
-    ratio = absorbed_over_emitted(make(), {"epsilon": epsilon})
-    print(f"\n{make.__name__} at epsilon {epsilon}: absorbed / emitted {ratio:.4f}")
+def _empty_room():
+    return _room_with_boxes(boxes=False)
+
+
+@pytest.mark.parametrize("make, settings, tolerance", [
+    (_room_with_boxes, {"epsilon": 0.002}, 0.006),   # was 2.39 % short, then 0.79 %, 0.56 %, now 0.45 %
+    (_room_with_boxes, {"epsilon": 0.0002}, 0.006),  # 1.32 %, then 0.62 %, now 0.46 %
+    (_office, {"epsilon": 0.002}, 0.004),            # 1.00 %, then 0.46 %, 0.14 %, now 0.10 %
+    # Element links alone: kept links' parts weights stale by a pass lost 1.08 %, refreshed 0.01 % (stop 43).
+    (_empty_room, {"epsilon": 0.002, "clustering": False}, 0.003),
+], ids=["boxes-0.002", "boxes-default", "office-0.002", "empty-no-clusters"])
+def test_a_closed_room_absorbs_the_light_its_lamps_emit(make, settings, tolerance):
+    ratio = absorbed_over_emitted(make(), settings)
+    print(f"\n{make.__name__} with {settings}: absorbed / emitted {ratio:.4f}")
     assert abs(ratio - 1) <= tolerance
 
 

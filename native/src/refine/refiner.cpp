@@ -1313,6 +1313,16 @@ void Refiner::rerefine(std::vector<Link>& links, Progress* progress, bool& chang
                         refine(l.receiver, l.source, out[c]);
                     } else if (!countLink(l)) {
                         replaced[i] = 1;
+                    } else if (!isClusterNode(l.source) && !isClusterNode(l.receiver) && !provisional(l) &&
+                               l.Fmean > 0 && hasSettledChildren(l.source) && h_[l.source].Bdev > 0) {
+                        // A kept link's form factor is weighted by its source's parts as they were lit when
+                        // it was made (estimateUnoccluded), a link made in the first pass not at all, while
+                        // links made now into the same source take its parts' light of now: what the
+                        // receivers take from each part no longer sums to what the part sends. A closed 2 m
+                        // room without clustering lost 1.08 % of its light that way at epsilon 0.002, and
+                        // 0.01 % with every kept link weighted again by the parts' present light.
+                        Link fresh;
+                        if (estimateUnoccluded(l.receiver, l.source, fresh)) l.Fmean = fresh.Fmean;
                     }
                 }
             } catch (...) {
