@@ -178,7 +178,9 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         h.updateClusterFlux();
         h.updateRadiosityDeviation();
         refiner.setSolvedTextures(conv, textures);
-        refiner.rerefine(links, progress, changed);
+        // The last pass also weighs every kept link by its source's parts' light of now, as the links it makes
+        // are weighed (Refiner::rerefine): what the final solve reads.
+        refiner.rerefine(links, progress, changed, pass == settings.refinePasses - 1);
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();
         if (!changed) break;  // no element was split: the complete textures still fit the leaves

@@ -29,8 +29,9 @@ public:
     std::vector<Link> linkAll(Progress* progress);
     // Re-judges links with the sources' current radiosities; splits those now too coarse. In place: a
     // replaced link's parts follow the kept links, so the order is not (receiver, source) afterwards.
-    // `changed` tells whether any link was replaced.
-    void rerefine(std::vector<Link>& links, Progress* progress, bool& changed);
+    // `changed` tells whether any link was replaced. With `reweigh`, every kept element link into a source whose
+    // parts differ takes its parts' present light again (the last pass: what the final solve reads).
+    void rerefine(std::vector<Link>& links, Progress* progress, bool& changed, bool reweigh = false);
 
     // Radiosity error a link can cause on its receiver (W/m^2, max over colour channels).
     double linkError(const Link& l) const;
@@ -99,6 +100,11 @@ private:
     double receiverRho(int node) const;
     // Unoccluded estimate. False when no light can pass (back-facing or coplanar).
     bool estimateUnoccluded(int r, int s, Link& l);
+    // The factor by which the source's parts' light shares out its form factor at the receiver's points `pts`
+    // (1 where the parts do not differ): estimateUnoccluded's weighting, with the parts' present radiosities.
+    double partsWeight(int r, int s, const Vec3* pts, int np) const;
+    // estimateUnoccluded's mean alone, weighted by the parts' present light (rerefine's reweigh).
+    double weightedMean(int r, int s) const;
     // batches > 0: that many rounds of 256 rays instead of the visibility_rays setting's, and V the
     // visible share of the form factor (each ray weighted by its ends' cos cos / r^2). transfer > 0:
     // the link's unshadowed light; the first round is then 64 rays and the estimate stops as soon as
