@@ -178,8 +178,8 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         h.updateClusterFlux();
         h.updateRadiosityDeviation();
         refiner.setSolvedTextures(conv, textures);
-        // The last pass also weighs every kept link by its source's parts' light of now, as the links it makes
-        // are weighed (Refiner::rerefine): what the final solve reads.
+        // The last pass also weighs the kept links again by their sources' parts' light of now, as the links it
+        // makes are weighed (Refiner::rerefine): what the final solve reads.
         refiner.rerefine(links, progress, changed, pass == settings.refinePasses - 1);
         remapLinks(links, h.canonicalize());
         rep.seconds["refine"] += clock.lap();

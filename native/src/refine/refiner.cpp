@@ -1348,7 +1348,7 @@ void Refiner::rerefine(std::vector<Link>& links, Progress* progress, bool& chang
                         // the last solve (at every pass it cost the 100k office 5 % more CPU), and only links
                         // whose light could move by a tenth of the threshold (rho B_dev F: the parts' spread
                         // bounds how far the weight can move), which keeps the 20k office's refinement at its
-                        // time without them; all of them: 3 % more, and the same balance to 0.01 %.
+                        // time without them (all of them: 3 % more, its balance the same to 0.01 %).
                         l.Fmean = float(weightedMean(l.receiver, l.source));
                     }
                 }

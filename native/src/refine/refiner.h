@@ -29,8 +29,9 @@ public:
     std::vector<Link> linkAll(Progress* progress);
     // Re-judges links with the sources' current radiosities; splits those now too coarse. In place: a
     // replaced link's parts follow the kept links, so the order is not (receiver, source) afterwards.
-    // `changed` tells whether any link was replaced. With `reweigh`, every kept element link into a source whose
-    // parts differ takes its parts' present light again (the last pass: what the final solve reads).
+    // `changed` tells whether any link was replaced. With `reweigh`, a kept element link into a source whose parts
+    // differ enough to move its light by a tenth of the threshold takes their present light again (the last pass:
+    // what the final solve reads).
     void rerefine(std::vector<Link>& links, Progress* progress, bool& changed, bool reweigh = false);
 
     // Radiosity error a link can cause on its receiver (W/m^2, max over colour channels).
