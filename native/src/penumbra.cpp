@@ -210,6 +210,11 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     if (!res.converged)
         rep.warnings.push_back("solver stopped after max_iterations with estimated error " +
                                std::to_string(res.residual));
+    if (res.overGathering > 0)
+        rep.warnings.push_back(std::to_string(res.overGathering) +
+                               " elements gathered more light than their hemisphere holds (form factors summing to " +
+                               std::to_string(res.maxGathered) +
+                               "; faces meeting at a hair's angle or overlapping?): their light was capped");
 
     if (settings.finalGather) {
         // Emitting faces whose light a convolution link's texture already draws on a receiver.

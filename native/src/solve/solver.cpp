@@ -145,6 +145,7 @@ Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected)
     int fc = h_.firstChild(ei);
     if (fc < 0) {
         const ScenePolygon& p = h_.scene().polygons[e.polygon];
+        if (!cap_.empty()) total = total * double(cap_[size_t(ei)]);
         if (lightE_) total += (*lightE_)[size_t(ei)];
         Rgb refl = mul(p.rho, total);
         B = p.emission + refl;
@@ -264,6 +265,72 @@ bool leastSquares(double A[kDepth][kDepth], double b[kDepth], int m, double x[kD
 }  // namespace
 
 SolveResult Solver::solve(const std::vector<Link>& links, Progress* progress) {
+    cap_.clear();
+    SolveResult res = iterate(links, progress);
+    if (res.converged) return res;
+    // Links that gather more than a hemisphere at a leaf (a fuzzed scene's faces meeting in wedges at a hair's
+    // angle, each seen whole through the other: form factors summing to 2.9) make sweeps that grow instead of
+    // shrinking, and no number of them converges. A leaf cannot receive more than its hemisphere sends it, so
+    // each leaf's gathered light is scaled down to a form factor sum of 1, which makes every sweep contract
+    // (by the largest albedo, under 1 by validation), and the solve is run again from the emission. Only
+    // after a solve that did not converge: a scene that converges is solved as before, bit for bit.
+    int capped = capGathering(links, res.maxGathered);
+    if (capped == 0) return res;
+    const Scene& sc = h_.scene();
+    for (size_t i = 0; i < h_.size(); ++i) h_[i].B = sc.polygons[h_[i].polygon].emission;
+    contraction_ = -1;
+    double most = res.maxGathered;
+    res = iterate(links, progress);
+    res.overGathering = capped;
+    res.maxGathered = most;
+    return res;
+}
+
+int Solver::capGathering(const std::vector<Link>& links, double& most) {
+    // One gather with every radiosity 1: each leaf's gathered irradiance is then the sum of the form factors
+    // (visibility included) of every link into it and its ancestors and clusters.
+    std::vector<Rgb> saved(h_.size());
+    for (size_t i = 0; i < h_.size(); ++i) {
+        saved[i] = h_[i].B;
+        h_[i].B = Rgb{1, 1, 1};
+    }
+    const CompleteTextures* textures = textures_;
+    textures_ = nullptr;  // their light is drawn per texel from the sources' own images, not summed here
+    groupStart_.clear();
+    gather(links);
+    size_t roots = h_.numRoots();
+    std::vector<Rgb> down(roots);
+    if (!h_.clusters().empty()) distributeClusters(links, down);
+    std::vector<float> cap(h_.size(), 1.0f);
+    int capped = 0;
+    most = 0;
+    for (size_t r = 0; r < roots; ++r) {
+        std::vector<std::pair<int, double>> stack{{int(r), maxComponent(down[r])}};
+        while (!stack.empty()) {
+            auto [ei, above] = stack.back();
+            stack.pop_back();
+            double sum = above + maxComponent(h_[ei].irradiance);
+            int fc = h_.firstChild(ei);
+            if (fc < 0) {
+                most = std::max(most, sum);
+                // Sums a hair over 1 are the quadrature's own error near contacts, not an over-gathering link.
+                if (sum > 1.01) {
+                    cap[size_t(ei)] = float(1.0 / sum);
+                    ++capped;
+                }
+            }
+            for (int k = 0; fc >= 0 && k < h_[ei].numChildren; ++k) stack.push_back({fc + k, sum});
+        }
+    }
+    for (size_t i = 0; i < h_.size(); ++i) h_[i].B = saved[i];
+    h_.updateClusterFlux();
+    textures_ = textures;
+    groupStart_.clear();
+    if (capped > 0) cap_ = std::move(cap);
+    return capped;
+}
+
+SolveResult Solver::iterate(const std::vector<Link>& links, Progress* progress) {
     SolveResult res;
     groupStart_.clear();  // the links may have been re-refined since the last solve
     // A sweep is the fixed-point map B -> g(B) = E + K B. Its error shrinks by K's largest eigenvalue,

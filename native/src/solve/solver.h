@@ -19,6 +19,10 @@ struct SolveResult {
     int iterations = 0;
     double residual = 0;  // estimated remaining relative error of the reflected radiosity
     bool converged = false;
+    // Leaves whose links gathered more than a hemisphere (form factors summing over 1), found after a solve
+    // that did not converge, and the largest sum; their gathered light was capped and the solve run again.
+    int overGathering = 0;
+    double maxGathered = 0;
 };
 
 class Solver {
@@ -57,6 +61,11 @@ public:
     void directIrradiance(const std::vector<Link>& links, std::vector<Rgb>& shadowed, std::vector<Rgb>& unoccluded);
 
 private:
+    // The sweeps from the radiosities in the hierarchy until the tolerance or max_iterations.
+    SolveResult iterate(const std::vector<Link>& links, Progress* progress);
+    // Sums each leaf's form factors (one gather with every radiosity 1) and caps the light of leaves whose sum
+    // is over 1 (cap_); returns how many, `most` the largest sum.
+    int capGathering(const std::vector<Link>& links, double& most);
     // One gather (irradiance from links) followed by one push/pull; returns the L1 change of B.
     double sweep(const std::vector<Link>& links);
     void gather(const std::vector<Link>& links);
@@ -84,6 +93,7 @@ private:
     double contraction_ = -1;
     int mixing_ = kMaxMixing;
     bool unoccluded_ = false;  // gather with every link's visibility taken as 1
+    std::vector<float> cap_;   // per element: the scale of a leaf's gathered light, or empty (capGathering)
     const std::vector<ConvolutionLink>* convLinks_ = nullptr;
     const CompleteTextures* textures_ = nullptr;
     const std::vector<Rgb>* lightE_ = nullptr;
