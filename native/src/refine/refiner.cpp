@@ -186,6 +186,12 @@ double medianPieceSize(const Scene& sc) {
     return sizes[sizes.size() / 2];
 }
 
+// Lambert's form factor of source s (its shape sp, normal ns) at receiver point p with normal nr; 0 where p lies
+// behind s (s sends one way).
+double frontFormFactor(const Vec3& p, const Vec3& nr, const Element& s, const Vec3& ns, const Polygon& sp) {
+    return dot(p - s.v[0], ns) > 0 ? pointToPolygonFormFactor(p, nr, sp) : 0.0;
+}
+
 }  // namespace
 
 Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters)
@@ -437,7 +443,7 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
     }
     double sum = 0, fmin = HUGE_VAL, fmax = 0;
     for (int k = 0; k < total; ++k) {
-        double f = dot(pts[k] - s.v[0], ns) > 0 ? pointToPolygonFormFactor(pts[k], nr, sp) : 0.0;
+        double f = frontFormFactor(pts[k], nr, s, ns, sp);
         if (k < np) sum += f;
         fmin = std::min(fmin, f);
         fmax = std::max(fmax, f);
@@ -507,14 +513,14 @@ double Refiner::partsWeight(int ri, int si, const Vec3* pts, int np) const {
 
 double Refiner::weightedMean(int ri, int si) const {
     const Element& r = h_[ri];
+    const Element& s = h_[si];
     const Vec3& nr = h_.scene().polygons[r.polygon].normal;
-    const Vec3& ns = h_.scene().polygons[h_[si].polygon].normal;
-    Polygon sp = h_[si].polygonShape();
+    const Vec3& ns = h_.scene().polygons[s.polygon].normal;
+    Polygon sp = s.polygonShape();
     Vec3 pts[11];
     int np = samplePoints(r, pts);
     double sum = 0;
-    for (int k = 0; k < np; ++k)
-        sum += dot(pts[k] - h_[si].v[0], ns) > 0 ? pointToPolygonFormFactor(pts[k], nr, sp) : 0.0;
+    for (int k = 0; k < np; ++k) sum += frontFormFactor(pts[k], nr, s, ns, sp);
     return sum / np * partsWeight(ri, si, pts, np);
 }
 
@@ -1337,7 +1343,7 @@ void Refiner::rerefine(std::vector<Link>& links, Progress* progress, bool& chang
                     } else if (!countLink(l)) {
                         replaced[i] = 1;
                     } else if (reweigh && !isClusterNode(l.source) && !isClusterNode(l.receiver) && !provisional(l) &&
-                               l.Fmean > 0 && hasSettledChildren(l.source) && h_[l.source].Bdev > 0 &&
+                               l.Fmean > 0 && hasSettledChildren(l.source) &&
                                receiverRho(l.receiver) * h_[l.source].Bdev * l.F() > 0.1 * threshold_) {
                         // A kept link's form factor is weighted by its source's parts as they were lit when
                         // it was made (estimateUnoccluded), a link made in the first pass not at all, while

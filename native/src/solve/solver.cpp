@@ -160,6 +160,29 @@ Rgb Solver::pushPull(int ei, const Rgb& down, double& change, double& reflected)
     return B;
 }
 
+void Solver::gatheredDown(const std::vector<Link>& links, std::vector<Rgb>& out) {
+    groupStart_.clear();
+    gather(links);
+    size_t roots = h_.numRoots();
+    std::vector<Rgb> down(roots);
+    if (!h_.clusters().empty()) distributeClusters(links, down);
+    out.assign(h_.size(), Rgb{});
+    parallelFor(roots, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
+        std::vector<std::pair<int, Rgb>> stack;
+        for (size_t r = b; r < e; ++r) {
+            stack.push_back({int(r), down[r]});
+            while (!stack.empty()) {
+                auto [ei, above] = stack.back();
+                stack.pop_back();
+                Rgb total = above + h_[ei].irradiance;
+                out[size_t(ei)] = total;
+                int fc = h_.firstChild(ei);
+                for (int k = 0; fc >= 0 && k < h_[ei].numChildren; ++k) stack.push_back({fc + k, total});
+            }
+        }
+    });
+}
+
 void Solver::directIrradiance(const std::vector<Link>& links, std::vector<Rgb>& shadowed,
                               std::vector<Rgb>& unoccluded) {
     const Scene& sc = h_.scene();
@@ -172,29 +195,9 @@ void Solver::directIrradiance(const std::vector<Link>& links, std::vector<Rgb>& 
     const CompleteTextures* textures = textures_;
     convLinks_ = nullptr;
     textures_ = nullptr;
-    size_t roots = h_.numRoots();
     for (bool open : {false, true}) {
         unoccluded_ = open;
-        groupStart_.clear();
-        gather(links);
-        std::vector<Rgb> down(roots);
-        if (!h_.clusters().empty()) distributeClusters(links, down);
-        std::vector<Rgb>& out = open ? unoccluded : shadowed;
-        out.assign(h_.size(), Rgb{});
-        parallelFor(roots, resolveThreads(settings_.threads), 64, [&](size_t b, size_t e, int) {
-            std::vector<std::pair<int, Rgb>> stack;
-            for (size_t r = b; r < e; ++r) {
-                stack.push_back({int(r), down[r]});
-                while (!stack.empty()) {
-                    auto [ei, above] = stack.back();
-                    stack.pop_back();
-                    Rgb total = above + h_[ei].irradiance;
-                    out[size_t(ei)] = total;
-                    int fc = h_.firstChild(ei);
-                    for (int k = 0; fc >= 0 && k < h_[ei].numChildren; ++k) stack.push_back({fc + k, total});
-                }
-            }
-        });
+        gatheredDown(links, open ? unoccluded : shadowed);
     }
     unoccluded_ = false;
     for (size_t i = 0; i < h_.size(); ++i) h_[i].B = saved[i];
@@ -274,16 +277,16 @@ SolveResult Solver::solve(const std::vector<Link>& links, Progress* progress) {
     // each leaf's gathered light is scaled down to a form factor sum of 1, which makes every sweep contract
     // (by the largest albedo, under 1 by validation), and the solve is run again from the emission. Only
     // after a solve that did not converge: a scene that converges is solved as before, bit for bit.
-    int capped = capGathering(links, res.maxGathered);
+    double most = 0;
+    int capped = capGathering(links, most);
     if (capped == 0) return res;
     const Scene& sc = h_.scene();
     for (size_t i = 0; i < h_.size(); ++i) h_[i].B = sc.polygons[h_[i].polygon].emission;
     contraction_ = -1;
-    double most = res.maxGathered;
-    res = iterate(links, progress);
-    res.overGathering = capped;
-    res.maxGathered = most;
-    return res;
+    SolveResult again = iterate(links, progress);
+    again.overGathering = capped;
+    again.maxGathered = most;
+    return again;
 }
 
 int Solver::capGathering(const std::vector<Link>& links, double& most) {
@@ -296,30 +299,19 @@ int Solver::capGathering(const std::vector<Link>& links, double& most) {
     }
     const CompleteTextures* textures = textures_;
     textures_ = nullptr;  // their light is drawn per texel from the sources' own images, not summed here
-    groupStart_.clear();
-    gather(links);
-    size_t roots = h_.numRoots();
-    std::vector<Rgb> down(roots);
-    if (!h_.clusters().empty()) distributeClusters(links, down);
+    std::vector<Rgb> gathered;
+    gatheredDown(links, gathered);
     std::vector<float> cap(h_.size(), 1.0f);
     int capped = 0;
     most = 0;
-    for (size_t r = 0; r < roots; ++r) {
-        std::vector<std::pair<int, double>> stack{{int(r), maxComponent(down[r])}};
-        while (!stack.empty()) {
-            auto [ei, above] = stack.back();
-            stack.pop_back();
-            double sum = above + maxComponent(h_[ei].irradiance);
-            int fc = h_.firstChild(ei);
-            if (fc < 0) {
-                most = std::max(most, sum);
-                // Sums a hair over 1 are the quadrature's own error near contacts, not an over-gathering link.
-                if (sum > 1.01) {
-                    cap[size_t(ei)] = float(1.0 / sum);
-                    ++capped;
-                }
-            }
-            for (int k = 0; fc >= 0 && k < h_[ei].numChildren; ++k) stack.push_back({fc + k, sum});
+    for (size_t i = 0; i < h_.size(); ++i) {
+        if (!h_[i].isLeaf()) continue;
+        double sum = maxComponent(gathered[i]);
+        most = std::max(most, sum);
+        // Sums a hair over 1 are the quadrature's own error near contacts, not an over-gathering link.
+        if (sum > 1.01) {
+            cap[i] = float(1.0 / sum);
+            ++capped;
         }
     }
     for (size_t i = 0; i < h_.size(); ++i) h_[i].B = saved[i];

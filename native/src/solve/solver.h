@@ -66,6 +66,9 @@ private:
     // Sums each leaf's form factors (one gather with every radiosity 1) and caps the light of leaves whose sum
     // is over 1 (cap_); returns how many, `most` the largest sum.
     int capGathering(const std::vector<Link>& links, double& most);
+    // Every element's irradiance from the links into it, its ancestors and its clusters, at the radiosities as
+    // they are: one gather pushed down without a push/pull.
+    void gatheredDown(const std::vector<Link>& links, std::vector<Rgb>& out);
     // One gather (irradiance from links) followed by one push/pull; returns the L1 change of B.
     double sweep(const std::vector<Link>& links);
     void gather(const std::vector<Link>& links);
