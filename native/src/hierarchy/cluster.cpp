@@ -105,6 +105,18 @@ ClusterTree::ClusterTree(const Scene& scene, bool planarGroups) : planarGroups_(
             memberClass_.push_back(it->second);
         }
         cl.classEnd = int(classNormal_.size());
+        cl.blockBegin = int(classBlocks_.size());
+        for (int m = cl.classBegin; m < cl.classEnd; m += 4) {
+            ClassBlock b{};
+            for (int lane = 0; lane < 4 && m + lane < cl.classEnd; ++lane) {
+                const Vec3& n = classNormal_[size_t(m + lane)];
+                b.nx[lane] = float(n.x);
+                b.ny[lane] = float(n.y);
+                b.nz[lane] = float(n.z);
+            }
+            classBlocks_.push_back(b);
+        }
+        cl.blockEnd = int(classBlocks_.size());
     }
     classFlux_.assign(classNormal_.size(), Rgb{});
 }

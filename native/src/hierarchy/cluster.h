@@ -26,6 +26,16 @@ struct Cluster {
     // toward any direction is a sum over these, not over its faces. [classBegin, classEnd) indexes
     // ClusterTree::classNormal and ::classFlux.
     int classBegin = 0, classEnd = 0;
+    // The same classes four to a ClassBlock, the last one padded with dark classes: ClusterTree::classBlocks.
+    int blockBegin = 0, blockEnd = 0;
+};
+
+// Four normal classes side by side in single precision, for a far cluster's light at a point: the sweeps
+// evaluate that sum for every face of every cluster receiver and every near source's subcluster (node.cpp,
+// clusterFluxAt), four classes per instruction. Padding lanes have zero normal and flux.
+struct alignas(16) ClassBlock {
+    float nx[4], ny[4], nz[4];
+    float fr[4], fg[4], fb[4];
 };
 
 class ClusterTree {
@@ -45,6 +55,7 @@ public:
     // Per normal class: sum of B * area of its faces, refreshed from the polygons' radiosities by
     // updateFlux before every gather and refinement pass.
     const std::vector<Rgb>& classFlux() const { return classFlux_; }
+    const std::vector<ClassBlock>& classBlocks() const { return classBlocks_; }
     // Nothing below cluster c has light to give (every class flux zero), as of the last updateFlux: its light
     // is zero everywhere, and a gather need not walk it.
     bool dark(int c) const { return dark_[size_t(c)] != 0; }
@@ -60,6 +71,15 @@ public:
                 classFlux_[size_t(cls[k - cl.begin])] += polygonRadiosity(p) * scene.polygons[size_t(p)].area;
             }
         }
+        for (const Cluster& cl : clusters_)
+            for (int m = cl.classBegin; m < cl.classEnd; ++m) {
+                ClassBlock& b = classBlocks_[size_t(cl.blockBegin + (m - cl.classBegin) / 4)];
+                int lane = (m - cl.classBegin) % 4;
+                const Rgb& f = classFlux_[size_t(m)];
+                b.fr[lane] = float(f.x);
+                b.fg[lane] = float(f.y);
+                b.fb[lane] = float(f.z);
+            }
         dark_.assign(clusters_.size(), 1);
         for (size_t c = 0; c < clusters_.size(); ++c)
             for (int m = clusters_[c].classBegin; m < clusters_[c].classEnd && dark_[c]; ++m) {
@@ -77,6 +97,7 @@ private:
     std::vector<int> owner_;
     std::vector<Vec3> classNormal_;
     std::vector<Rgb> classFlux_;
+    std::vector<ClassBlock> classBlocks_;
     std::vector<char> dark_;
     std::vector<size_t> memberStart_;  // per cluster: where its faces' class indices start
     std::vector<int> memberClass_;     // class index of each face of each cluster

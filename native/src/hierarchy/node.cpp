@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <cstring>
 
 #include "geometry/form_factor.h"
 #include "hierarchy/predicates.h"
@@ -118,11 +119,31 @@ Rgb clusterFluxAt(const Hierarchy& h, int ci, const Vec3& y, const Vec3* n) {
     if (cy <= 0) return {};
     // Without a branch on each class's side: which classes face y is as good as random from one call to the
     // next, and a class turned away adds 0.
-    Rgb sum;
-    const Vec3* normal = ct.classNormal().data();
-    const Rgb* flux = ct.classFlux().data();
-    for (int m = c.classBegin; m < c.classEnd; ++m)
-        sum += flux[m] * std::max(0.0, dot(normal[m], u));
+    typedef float v4 __attribute__((vector_size(16)));
+    const v4 ux = {float(u.x), float(u.x), float(u.x), float(u.x)};
+    const v4 uy = {float(u.y), float(u.y), float(u.y), float(u.y)};
+    const v4 uz = {float(u.z), float(u.z), float(u.z), float(u.z)};
+    const v4 zero = {0, 0, 0, 0};
+    v4 r = zero, g = zero, b = zero;
+    const ClassBlock* blocks = ct.classBlocks().data();
+    for (int k = c.blockBegin; k < c.blockEnd; ++k) {
+        const ClassBlock& cb = blocks[k];
+        v4 nx, ny, nz, fr, fg, fb;
+        std::memcpy(&nx, cb.nx, sizeof nx);
+        std::memcpy(&ny, cb.ny, sizeof ny);
+        std::memcpy(&nz, cb.nz, sizeof nz);
+        std::memcpy(&fr, cb.fr, sizeof fr);
+        std::memcpy(&fg, cb.fg, sizeof fg);
+        std::memcpy(&fb, cb.fb, sizeof fb);
+        v4 s = nx * ux + ny * uy + nz * uz;
+        s = s > zero ? s : zero;
+        r += fr * s;
+        g += fg * s;
+        b += fb * s;
+    }
+    Rgb sum{double(r[0]) + double(r[1]) + double(r[2]) + double(r[3]),
+            double(g[0]) + double(g[1]) + double(g[2]) + double(g[3]),
+            double(b[0]) + double(b[1]) + double(b[2]) + double(b[3])};
     return sum * (cy / (M_PI * r2));
 }
 
