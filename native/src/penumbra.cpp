@@ -250,6 +250,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         sol->field_ = conv.empty() ? RadianceField(h)
                                    : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
     }
+    h.updateClusterFlux();  // the final radiosity for the bounds (directIrradiance's gathers left the emission)
     ErrorEstimate est = estimateError(h, links, settings, res.residual);
     rep.errorEstimate = est.overall;
     rep.objectErrorEstimate = est.perObject;

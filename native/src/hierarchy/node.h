@@ -46,6 +46,7 @@ double elementKernel(const Element& e, const Vec3& en, const Vec3& y, const Vec3
 // Upper bound on the irradiance `source` can send to any point of a receiver whose box is `rb`: face by
 // face, cosines widened by the angular radius of the other end, the distance shrunk to the gap between
 // the face's box and rb, and no face's form factor above 1 (so a face touching rb adds its radiosity).
+// A cluster's faces count with their radiosity as of the last Hierarchy::updateClusterFlux.
 double fluxBound(const Hierarchy& h, int source, const Bounds& rb);
 
 }  // namespace penumbra

@@ -847,6 +847,7 @@ bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSamp
         if (receiver ? !role.receives : !role.sends) continue;
         const Hierarchy::FaceLight& f = faces[size_t(k)];
         Vec3 d = toward - f.center;
+        if (!(dot(f.normal, d) > 0)) continue;  // turned away: spares the normalisation (a square root, 3 divisions)
         double w = f.area * std::max(0.0, dot(f.normal, normalize(d)));
         if (w <= 0) continue;
         total += w;
