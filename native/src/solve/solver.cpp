@@ -339,7 +339,6 @@ SolveResult Solver::iterate(const std::vector<Link>& links, Progress* progress) 
     for (size_t i = 0; i < n; ++i) w[i] = h_[i].isLeaf() ? h_[i].area : 0.0;
     double prev = -1;
     bool plain = true;  // this sweep starts from the last one's output (its ratio measures Jacobi)
-    double lastMixedRatio = -1;  // the last step's ratio of changes, if it was a mixed one
     for (int it = 1; it <= settings_.maxIterations; ++it) {
         for (size_t i = 0; i < n; ++i) x[i] = h_[i].B;
         double change = sweep(links);
@@ -351,14 +350,6 @@ SolveResult Solver::iterate(const std::vector<Link>& links, Progress* progress) 
         // than Jacobi's, so only plain sweeps measure q.
         if (plain && prev > 0 && change < prev) contraction_ = std::max(contraction_, change / prev);
         double q = contraction_;
-        // A mixed step shrinks the change faster than a plain one (the 100k office's last solve: 0.28 a step
-        // against Jacobi's 0.60), and Jacobi's ratio then overstates what is left by about five times: its last
-        // two sweeps took the estimate from 1.0e-4 to 3e-5 where the changes still to come summed to 2.7e-5.
-        // After two mixed steps in a row the larger of their two ratios stands for q, never above Jacobi's.
-        double ratio = prev > 0 ? change / prev : -1;
-        if (!plain && lastMixedRatio > 0 && ratio > 0 && q > 0)
-            q = std::min(q, 1.5 * std::max(ratio, lastMixedRatio));
-        lastMixedRatio = plain ? -1 : ratio;
         double remaining = q > 0 && q < 1 ? rel * q / (1 - q) : rel;
         res.residual = remaining;
         bool grew = prev > 0 && change > prev;
