@@ -3,6 +3,8 @@
 // a wall sits near the root and a chair's faces sit in the chair's clusters. Refinement starts from a
 // single root <-> root link, which replaces the O(n^2) linking of every polygon pair.
 #pragma once
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -56,6 +58,10 @@ public:
     // updateFlux before every gather and refinement pass.
     const std::vector<Rgb>& classFlux() const { return classFlux_; }
     const std::vector<ClassBlock>& classBlocks() const { return classBlocks_; }
+    // The blocks hold each class's light divided by this power of two (the largest class's binary exponent), so that
+    // no flux a valid scene can hold (coordinates to 1e8 m, any finite float emission) overflows a float: multiply
+    // their sums back by it.
+    double classBlockUnit() const { return classBlockUnit_; }
     // Nothing below cluster c has light to give (every class flux zero), as of the last updateFlux: its light
     // is zero everywhere, and a gather need not walk it.
     bool dark(int c) const { return dark_[size_t(c)] != 0; }
@@ -71,14 +77,18 @@ public:
                 classFlux_[size_t(cls[k - cl.begin])] += polygonRadiosity(p) * scene.polygons[size_t(p)].area;
             }
         }
+        double largest = 0;
+        for (const Rgb& f : classFlux_) largest = std::max(largest, maxComponent(f));
+        classBlockUnit_ = largest > 0 && std::isfinite(largest) ? std::ldexp(1.0, std::ilogb(largest)) : 1.0;
+        const double scale = 1 / classBlockUnit_;  // a power of two: exact
         for (const Cluster& cl : clusters_)
             for (int m = cl.classBegin; m < cl.classEnd; ++m) {
                 ClassBlock& b = classBlocks_[size_t(cl.blockBegin + (m - cl.classBegin) / 4)];
                 int lane = (m - cl.classBegin) % 4;
                 const Rgb& f = classFlux_[size_t(m)];
-                b.fr[lane] = float(f.x);
-                b.fg[lane] = float(f.y);
-                b.fb[lane] = float(f.z);
+                b.fr[lane] = float(f.x * scale);
+                b.fg[lane] = float(f.y * scale);
+                b.fb[lane] = float(f.z * scale);
             }
         dark_.assign(clusters_.size(), 1);
         for (size_t c = 0; c < clusters_.size(); ++c)
@@ -98,6 +108,7 @@ private:
     std::vector<Vec3> classNormal_;
     std::vector<Rgb> classFlux_;
     std::vector<ClassBlock> classBlocks_;
+    double classBlockUnit_ = 1;
     std::vector<char> dark_;
     std::vector<size_t> memberStart_;  // per cluster: where its faces' class indices start
     std::vector<int> memberClass_;     // class index of each face of each cluster

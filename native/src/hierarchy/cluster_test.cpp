@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <set>
 
 #include "hierarchy/node.h"
@@ -209,6 +210,32 @@ TEST(ClusterTransfer, FarClusterMatchesTheSumOfItsFacesAndStaysUnderItsBound) {
     EXPECT_GT(fluxBound(h, clusterNode(box), near), 0.0);
     for (Vec3 nn : {Vec3{-1, 0, 0}, Vec3{0, 0, -1}, normalize(Vec3{-1, 0, -1})})
         EXPECT_LE(fluxAt(h, clusterNode(box), beside, &nn).z, fluxBound(h, clusterNode(box), near));
+}
+
+// The sweeps sum a far cluster's classes in single precision (ClassBlock). A scene at the edge of what validation
+// accepts (a room a million times larger, 1e12 m^2 tiles, radiosity 1e30) holds class fluxes near 1e42, past a
+// float's 3.4e38: the blocks hold them scaled by a power of two, and the light is what the double-precision sum
+// (FarFieldLight) gives, finite, not an infinity.
+TEST(ClusterTransfer, FarLightOfHugeFluxesStaysFiniteInSinglePrecision) {
+    auto t = clutteredRoom();
+    t.transform(1e6, {0, 0, 0});
+    Scene sc = buildScene(t.input());
+    Hierarchy h(sc, size_t(-1), true);
+    for (size_t i = 0; i < h.numRoots(); ++i) h[i].B = Rgb{1e30, 2e30, 0.5e30};
+    h.updateClusterFlux();
+    const ClusterTree& ct = h.clusters();
+    double largest = 0;
+    for (const Rgb& f : ct.classFlux()) largest = std::max(largest, maxComponent(f));
+    ASSERT_GT(largest, 1e39);  // past a float
+    Vec3 y = ct[0].center + Vec3{2e7, 3e7, 4e7}, n = normalize(Vec3{-2, -3, -4});
+    FarFieldLight far;
+    ASSERT_TRUE(farFieldLight(h, clusterNode(0), y, 1.0, far));
+    Rgb got = fluxAt(h, clusterNode(0), y, &n), want = far.at(y, &n);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_TRUE(std::isfinite(got[c])) << c;
+        EXPECT_GT(want[c], 0.0) << c;
+        EXPECT_NEAR(got[c], want[c], 1e-6 * want[c]) << c;
+    }
 }
 
 TEST(ClusterTransfer, FarFieldLightEqualsFluxAtOverItsBallAndRefusesWhatItCannotHold) {

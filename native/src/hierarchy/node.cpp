@@ -144,7 +144,7 @@ Rgb clusterFluxAt(const Hierarchy& h, int ci, const Vec3& y, const Vec3* n) {
     Rgb sum{double(r[0]) + double(r[1]) + double(r[2]) + double(r[3]),
             double(g[0]) + double(g[1]) + double(g[2]) + double(g[3]),
             double(b[0]) + double(b[1]) + double(b[2]) + double(b[3])};
-    return sum * (cy / (M_PI * r2));
+    return sum * (ct.classBlockUnit() * cy / (M_PI * r2));
 }
 
 }  // namespace
