@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "hierarchy/node.h"
+#include "util/parallel.h"
 
 namespace penumbra {
 
@@ -15,13 +16,16 @@ ErrorEstimate estimateError(const Hierarchy& h, const std::vector<Link>& links, 
     const int m = std::max(1, int(std::lround(std::sqrt(double(std::max(1, s.visibilityRays))))));
     const double n = std::min(256, m * m);
     std::vector<double> own(h.size(), 0.0), cluster(ct.size(), 0.0);
-    for (const Link& l : links) {
+    // Each link's share (a cluster link's is a bound over the source's faces: 0.9 s of the 100k office's 1 s here,
+    // serially) is worked out in parallel, a block of links at a time, and summed in link order, so the estimate
+    // does not depend on the thread count.
+    auto linkError2 = [&](const Link& l) {
         double rho = isClusterNode(l.receiver) ? ct[clusterIndex(l.receiver)].rhoMax
                                                : maxComponent(sc.polygons[h[l.receiver].polygon].rho);
-        if (!(rho > 0)) continue;
+        if (!(rho > 0)) return 0.0;
         double e2 = 0;
         if (isClusterNode(l.receiver) || isClusterNode(l.source)) {
-            if (l.V <= 0) continue;
+            if (l.V <= 0) return 0.0;
             double e = rho * fluxBound(h, l.source, nodeBox(h, l.receiver)) * rms12;
             e2 = e * e;
         } else {
@@ -41,10 +45,24 @@ ErrorEstimate estimateError(const Hierarchy& h, const std::vector<Link>& links, 
                 e2 += shadow * shadow * v * (0.25 + 1 / n) * share;
             }
         }
-        if (isClusterNode(l.receiver))
-            cluster[size_t(clusterIndex(l.receiver))] += e2;
-        else
-            own[size_t(l.receiver)] += e2;
+        return e2;
+    };
+    constexpr size_t kBlock = size_t(1) << 18;
+    std::vector<double> e2s(std::min(links.size(), kBlock));
+    const int threads = resolveThreads(s.threads);
+    for (size_t base = 0; base < links.size(); base += kBlock) {
+        size_t count = std::min(kBlock, links.size() - base);
+        parallelFor(count, threads, 4096, [&](size_t b, size_t e, int) {
+            for (size_t i = b; i < e; ++i) e2s[i] = linkError2(links[base + i]);
+        });
+        for (size_t i = 0; i < count; ++i) {
+            const Link& l = links[base + i];
+            if (e2s[i] == 0) continue;
+            if (isClusterNode(l.receiver))
+                cluster[size_t(clusterIndex(l.receiver))] += e2s[i];
+            else
+                own[size_t(l.receiver)] += e2s[i];
+        }
     }
     size_t objects = sc.objectNames.size();
     std::vector<double> err(objects, 0.0), sig(objects, 0.0);
