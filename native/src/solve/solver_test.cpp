@@ -85,6 +85,8 @@ TEST(Solve, ClusterLinksAreBitIdenticalAcrossThreadCounts) {
     }
     for (size_t i = 0; i < a->hierarchy().size(); ++i)
         for (int c = 0; c < 3; ++c) ASSERT_EQ(a->hierarchy()[i].B[c], b->hierarchy()[i].B[c]);
+    EXPECT_EQ(a->report().errorEstimate, b->report().errorEstimate);  // its links' shares are summed in link order
+    EXPECT_GT(a->report().errorEstimate, 0.0);
 }
 TEST(Furnace, HighAlbedoTessellatedTwoThreads) { checkFurnace(0.9, 3, 2); }
 
