@@ -28,8 +28,8 @@ Rgb weightedFaceLight(const Hierarchy& h, int clusterSource, const float* weight
 // A cluster source's light over a ball of receiving points that all lie in its far field, as one linear
 // map of the direction: where every normal class of its faces is turned toward the whole ball or away
 // from all of it, the sum over classes of flux_m max(0, n_m . u) is (sum over the classes turned toward
-// it of flux_m n_m^T) u, the same sum as fluxAt's in another order (fluxAt's in single precision). at() is then fluxAt at any y in the
-// ball for the cost of one class.
+// it of flux_m n_m^T) u, the same sum as fluxAt's in another order (fluxAt's in single precision). at() is
+// then fluxAt at any y in the ball for the cost of one class.
 struct FarFieldLight {
     Vec3 center;       // the source cluster's
     Vec3 rows[3];      // per colour channel: sum of flux_m n_m over the classes turned toward the ball
