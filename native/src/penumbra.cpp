@@ -175,7 +175,6 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     int passes = 1, totalIterations = res.iterations;
     for (int pass = 1; pass < settings.refinePasses; ++pass) {
         bool changed = false;
-        h.updateClusterFlux();
         h.updateRadiosityDeviation();
         refiner.setSolvedTextures(conv, textures);
         // The last pass also weighs the kept links again by their sources' parts' light of now, as the links it
@@ -250,7 +249,6 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
         sol->field_ = conv.empty() ? RadianceField(h)
                                    : RadianceField(h, textures.reflected(h, conv), ConvolutionField(h, conv));
     }
-    h.updateClusterFlux();  // the final radiosity for the bounds (directIrradiance's gathers left the emission)
     ErrorEstimate est = estimateError(h, links, settings, res.residual);
     rep.errorEstimate = est.overall;
     rep.objectErrorEstimate = est.perObject;

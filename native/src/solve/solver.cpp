@@ -421,6 +421,9 @@ SolveResult Solver::iterate(const std::vector<Link>& links, Progress* progress) 
         double frac = std::log(std::max(remaining, 1e-300)) / std::log(settings_.tolerance);
         checkProgress(progress, "solve", std::clamp(frac, 0.0, 1.0));
     }
+    // The last sweep and its mix moved B after the gather refreshed the clusters' copies of the light: refresh them,
+    // so that what reads them after a solve (the next refinement pass, the error estimate's bounds) reads its B.
+    h_.updateClusterFlux();
     return res;
 }
 
