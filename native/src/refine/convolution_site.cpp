@@ -239,6 +239,10 @@ bool ConvolutionSites::sourceCandidate(int s) const {
 }
 
 void ConvolutionSites::beginPass(size_t settled, const std::vector<ConvolutionLink>& conv, std::vector<Rgb> reflected) {
+    {
+        std::lock_guard<std::mutex> lock(refusedMutex_);
+        refused_.clear();
+    }
     settled_ = settled;
     field_ = conv.empty() ? ConvolutionField{} : ConvolutionField(h_, conv);
     reflected_ = std::move(reflected);
@@ -364,10 +368,37 @@ CounterId counterOf(ConvolutionSites::Refusal why) {
 
 }  // namespace
 
-// Like Embree's Scene::commit_internal handing each geometry type to its builder, evaluate() runs the
-// tests of the file's head as steps, each returning why it refuses (Refusal::None: go on). Without
+// The pair's tests, each refused pair judged once: the 100k office's refiner asked 1,456 times about 879 pairs, and
+// planned 627 textures for 372 of them at 6.6 ms a plan, none passing (4.1 s of CPU; 2.3 s judged once). Without
 // `out` it only asks whether a link would pass every test: nothing is counted or computed.
 ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
+    const PairKey key{isClusterNode(r), nodeKey(h_, r), isClusterNode(s), nodeKey(h_, s)};
+    {
+        std::lock_guard<std::mutex> lock(refusedMutex_);
+        auto it = refused_.find(key);
+        if (it != refused_.end()) {
+            // Counted as when it was judged (the report's counts do not depend on what was asked before).
+            if (it->second != Refusal::NotASite && out) {
+                counters_.add(kTried);
+                counters_.add(counterOf(it->second));
+            }
+            return it->second;
+        }
+    }
+    bool byTests = true;
+    const Refusal why = judge(r, s, out, byTests);
+    // A texture that failed to compute is not the pair's to keep: asked without `out`, the tests alone answer.
+    if (why != Refusal::None && byTests) {
+        std::lock_guard<std::mutex> lock(refusedMutex_);
+        refused_.emplace(key, why);
+    }
+    return why;
+}
+
+// Like Embree's Scene::commit_internal handing each geometry type to its builder, judge() runs the
+// tests of the file's head as steps, each returning why it refuses (Refusal::None: go on); byTests is false
+// when the tests passed and computing the textures failed.
+ConvolutionSites::Refusal ConvolutionSites::judge(int r, int s, ConvolutionLink* out, bool& byTests) {
     Site site;
     if (selectSource(r, s, site) != Refusal::None) return Refusal::NotASite;  // not counted
     if (out) counters_.add(kTried);
@@ -385,7 +416,10 @@ ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLi
         }
     }
     if (why == Refusal::None) why = withinTimeBudget(site);
-    if (why == Refusal::None && out) why = computeTextures(site, *out);
+    if (why == Refusal::None && out) {
+        why = computeTextures(site, *out);
+        byTests = false;
+    }
     if (why != Refusal::None && out) counters_.add(counterOf(why));
     return why;
 }

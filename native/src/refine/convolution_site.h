@@ -16,7 +16,10 @@
 #pragma once
 #include <atomic>
 #include <functional>
+#include <map>
+#include <mutex>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "hierarchy/element.h"
@@ -67,7 +70,8 @@ public:
 
 private:
     struct Site;  // a pair's polygons, boxes, blockers and plans, filled in by the steps below
-    Refusal evaluate(int r, int s, ConvolutionLink* out);
+    Refusal evaluate(int r, int s, ConvolutionLink* out);  // judge(), each refused pair once (refused_)
+    Refusal judge(int r, int s, ConvolutionLink* out, bool& byTests);
     Refusal selectSource(int r, int s, Site& site) const;  // test 2
     Refusal selectBlockers(Site& site) const;              // test 3
     Refusal planTextures(Site& site) const;                // test 4
@@ -96,6 +100,14 @@ private:
     ConvolutionField field_;
     std::vector<Rgb> reflected_;
     Counters& counters_;
+    // Pairs refused before, by their nodes' keys (stable across the passes, which renumber the elements):
+    // the tests depend on the geometry and the settings only, and the refiner asks about the same pair again
+    // in every pass that refines it and from every cluster above its source (linkPossibleBelow). A pair that
+    // passes is not kept: its link is made once. Cleared by beginPass, after which a source that reflects is
+    // drawn from new radiosities.
+    using PairKey = std::tuple<bool, uint64_t, bool, uint64_t>;
+    std::map<PairKey, Refusal> refused_;
+    std::mutex refusedMutex_;
     std::atomic<double> seconds_{0};
 };
 

@@ -180,6 +180,31 @@ TEST(ConvolutionSites, APostThroughTheFloorIsRefusedAsAnIntruder) {
     EXPECT_EQ(s.refused(), 1u);
 }
 
+// A refused pair is judged once (ConvolutionSites::refused_): asked again, by the same or a later pass, it answers
+// and is counted as the first time, and a pair that passes makes its link every time it is asked.
+TEST(ConvolutionSites, APairAskedAgainAnswersAndCountsAsTheFirstTime) {
+    Sites post(floorUnderLamp(Card::Post));
+    ConvolutionLink l;
+    EXPECT_FALSE(post.sites->wouldLink(0, 1));
+    for (int k = 0; k < 2; ++k) EXPECT_FALSE(post.sites->tryLink(0, 1, l));
+    EXPECT_FALSE(post.sites->wouldLink(0, 1));
+    EXPECT_EQ(post.count("convolution_tried"), 2u);
+    EXPECT_EQ(post.count("convolution_refused/intruder"), 2u);
+    EXPECT_EQ(post.refused(), 2u);
+    // Not a site (a receiver as its own source): never counted, however often asked.
+    for (int k = 0; k < 2; ++k) EXPECT_FALSE(post.sites->tryLink(0, 0, l));
+    EXPECT_EQ(post.count("convolution_tried"), 2u);
+
+    Sites card(floorUnderLamp(Card::Floating));
+    for (int k = 0; k < 2; ++k) {
+        ConvolutionLink made;
+        ASSERT_TRUE(card.sites->tryLink(0, 1, made));
+        EXPECT_FALSE(made.textures.empty());
+    }
+    EXPECT_EQ(card.count("convolution_tried"), 2u);
+    EXPECT_EQ(card.refused(), 0u);
+}
+
 TEST(ConvolutionSites, ATimeBudgetTooSmallIsRefusedAsTooSlow) {
     Settings tight;
     tight.tMax = 1e-12;
