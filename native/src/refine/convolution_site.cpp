@@ -373,35 +373,39 @@ CounterId counterOf(ConvolutionSites::Refusal why) {
 // `out` it only asks whether a link would pass every test: nothing is counted or computed.
 ConvolutionSites::Refusal ConvolutionSites::evaluate(int r, int s, ConvolutionLink* out) {
     const PairKey key{isClusterNode(r), nodeKey(h_, r), isClusterNode(s), nodeKey(h_, s)};
+    Refusal why = Refusal::None;
+    bool judged = false;
     {
         std::lock_guard<std::mutex> lock(refusedMutex_);
         auto it = refused_.find(key);
         if (it != refused_.end()) {
-            // Counted as when it was judged (the report's counts do not depend on what was asked before).
-            if (it->second != Refusal::NotASite && out) {
-                counters_.add(kTried);
-                counters_.add(counterOf(it->second));
-            }
-            return it->second;
+            why = it->second;
+            judged = true;
         }
     }
-    bool byTests = true;
-    const Refusal why = judge(r, s, out, byTests);
-    // A texture that failed to compute is not the pair's to keep: asked without `out`, the tests alone answer.
-    if (why != Refusal::None && byTests) {
-        std::lock_guard<std::mutex> lock(refusedMutex_);
-        refused_.emplace(key, why);
+    Site site;
+    if (!judged) {
+        why = judge(r, s, site);
+        if (why != Refusal::None) {
+            std::lock_guard<std::mutex> lock(refusedMutex_);
+            refused_.emplace(key, why);
+        }
+    }
+    // A pair that passes the tests is never in refused_: judged now, its site holds what the textures need.
+    // A texture that fails to compute refuses the link but is not kept: asked without `out`, the tests answer.
+    if (why == Refusal::None && out) why = computeTextures(site, *out);
+    // Counted alike whether judged now or before: the report's counts do not depend on what was asked first.
+    if (why != Refusal::NotASite && out) {
+        counters_.add(kTried);
+        if (why != Refusal::None) counters_.add(counterOf(why));
     }
     return why;
 }
 
 // Like Embree's Scene::commit_internal handing each geometry type to its builder, judge() runs the
-// tests of the file's head as steps, each returning why it refuses (Refusal::None: go on); byTests is false
-// when the tests passed and computing the textures failed.
-ConvolutionSites::Refusal ConvolutionSites::judge(int r, int s, ConvolutionLink* out, bool& byTests) {
-    Site site;
+// tests of the file's head as steps, each returning why it refuses (Refusal::None: go on), and fills `site`.
+ConvolutionSites::Refusal ConvolutionSites::judge(int r, int s, Site& site) const {
     if (selectSource(r, s, site) != Refusal::None) return Refusal::NotASite;  // not counted
-    if (out) counters_.add(kTried);
     Refusal why = selectBlockers(site);
     if (why == Refusal::None) {
         // A wall under a ceiling lamp: no frame orders source, blocker and whole receiver in depth (Invalid), or
@@ -416,11 +420,6 @@ ConvolutionSites::Refusal ConvolutionSites::judge(int r, int s, ConvolutionLink*
         }
     }
     if (why == Refusal::None) why = withinTimeBudget(site);
-    if (why == Refusal::None && out) {
-        why = computeTextures(site, *out);
-        byTests = false;
-    }
-    if (why != Refusal::None && out) counters_.add(counterOf(why));
     return why;
 }
 

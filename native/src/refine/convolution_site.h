@@ -71,7 +71,7 @@ public:
 private:
     struct Site;  // a pair's polygons, boxes, blockers and plans, filled in by the steps below
     Refusal evaluate(int r, int s, ConvolutionLink* out);  // judge(), each refused pair once (refused_)
-    Refusal judge(int r, int s, ConvolutionLink* out, bool& byTests);
+    Refusal judge(int r, int s, Site& site) const;         // tests 2-5
     Refusal selectSource(int r, int s, Site& site) const;  // test 2
     Refusal selectBlockers(Site& site) const;              // test 3
     Refusal planTextures(Site& site) const;                // test 4
