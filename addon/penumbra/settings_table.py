@@ -188,6 +188,9 @@ SETTINGS = (
             "Shadow rays per point, spot or sun lamp with a size (radius, angle) and for the world, per texel: "
             "the steps of their soft shadows (a lamp of radius 0 takes one ray, a hard shadow)",
             group="refinement"),
+    Setting("seed", int, 0, ("[", 0, 2**31 - 1, "]"), "Seed",
+            "Which sample pattern the rays use. Another seed gives a bake that differs only by sampling noise: "
+            "bake two to see how much of a difference is noise", group="refinement"),
     # Budgets: the solver stops with BudgetExceeded before taking the memory. Not in the panel.
     Setting("max_elements", int, 2000000, ("[", 1, 2**30, "]"), "Max Elements",
             "Quadtree elements, about 400 bytes each at the peak"),

@@ -16,6 +16,11 @@ again by its source's parts' present light before the last solve (refiner.cpp, r
 of the pass that made it, or none, while the links made later into the same source took the parts' new light, so the
 receivers no longer took from each part what it sends: 100.22 %, 99.56 % and 100.02 %; the empty room without
 clustering 98.92 -> 100.05 %. (Every kept link weighted again: 99.55 %, 99.54 %, 99.90 % and 99.98 %.)
+Stop 46: the `seed` setting draws every ray anew, and the balance moves with the pattern alone: over seeds 0-5 the
+boxes room at epsilon 0.002 absorbed 100.22 / 99.83 / 99.91 / 100.74 / 101.01 / 100.21 % (mean 100.32, standard
+deviation 0.46), at the default 99.61 +- 0.09, the 1k office 100.04 +- 0.08, the dark 5k office 100.05 +- 0.65 (one seed
+101.31 %). One pattern passing or failing said little: each case is now judged by its mean over several seeds (what
+the method loses), every seed within a looser band (what one bake may show).
 """
 import os
 import sys
@@ -91,30 +96,50 @@ def _empty_room():
     return _room_with_boxes(boxes=False)
 
 
-@pytest.mark.parametrize("make, settings, tolerance", [
-    (_room_with_boxes, {"epsilon": 0.002}, 0.006),   # was 2.39 % short, then 0.79 %, 0.56 %, now 0.22 % over
-    (_room_with_boxes, {"epsilon": 0.0002}, 0.006),  # 1.32 %, then 0.62 %, now 0.44 %
-    (_office, {"epsilon": 0.002}, 0.004),            # 1.00 %, then 0.46 %, 0.14 %, now 0.02 % over
+def balance_over_seeds(scene, settings, seeds):
+    """absorbed_over_emitted for each seed of `seeds`: the same room and settings drawn with other rays."""
+    return np.array([absorbed_over_emitted(scene, {**settings, "seed": seed}) for seed in seeds])
+
+
+def check_balance(name, scene, settings, seeds, mean_tolerance, each_tolerance):
+    ratios = balance_over_seeds(scene, settings, seeds)
+    print(f"\n{name} with {settings}: absorbed / emitted over seeds {list(seeds)}: "
+          + " ".join(f"{r:.4f}" for r in ratios) + f", mean {ratios.mean():.4f}")
+    assert abs(ratios.mean() - 1) <= mean_tolerance
+    assert np.all(np.abs(ratios - 1) <= each_tolerance)
+
+
+@pytest.mark.parametrize("make, settings, seeds, mean_tolerance, each_tolerance", [
+    # Seeds 0-5 at stop 46: mean 100.32 %, 99.83-101.01 % (seed 0 alone: was 2.39 % short, then 0.79 %, 0.56 %, 0.22 % over)
+    (_room_with_boxes, {"epsilon": 0.002}, range(6), 0.006, 0.015),
+    # Mean 99.61 %, 99.49-99.71 % (seed 0: 1.32 % short, then 0.62 %, 0.44 %)
+    (_room_with_boxes, {"epsilon": 0.0002}, range(4), 0.006, 0.01),
+    # Mean 100.04 %, 99.95-100.18 % (seed 0: 1.00 % short, then 0.46 %, 0.14 %, 0.02 % over)
+    (_office, {"epsilon": 0.002}, range(4), 0.004, 0.006),
     # Element links alone: kept links' parts weights stale by a pass lost 1.08 %; refreshed, 0.05 % over (stop 43).
-    (_empty_room, {"epsilon": 0.002, "clustering": False}, 0.003),
+    # No ray is cast in an empty room: one seed is every seed.
+    (_empty_room, {"epsilon": 0.002, "clustering": False}, range(1), 0.003, 0.003),
 ], ids=["boxes-0.002", "boxes-default", "office-0.002", "empty-no-clusters"])
-def test_a_closed_room_absorbs_the_light_its_lamps_emit(make, settings, tolerance):
-    ratio = absorbed_over_emitted(make(), settings)
-    print(f"\n{make.__name__} with {settings}: absorbed / emitted {ratio:.4f}")
-    assert abs(ratio - 1) <= tolerance
+def test_a_closed_room_absorbs_the_light_its_lamps_emit(make, settings, seeds, mean_tolerance, each_tolerance):
+    check_balance(make.__name__, make(), settings, seeds, mean_tolerance, each_tolerance)
 
 
 def test_a_dark_room_keeps_its_direct_light():
     """With every albedo a hundredth of its own the 5k office is lit almost only by its lamps, and its links are
     coarse: the floor's faces take their light through shared cluster links, each face's share from four rays.
-    Counted alike, the rays under-read the floor (furniture hides the low directions, which carry little light):
-    98.42 % absorbed. Weighted by the kernel over the density they were drawn with: 99.65 %."""
+    Counted alike, the rays under-read the floor (furniture hides the low, oblique directions, which carry little
+    light): 98.42 % absorbed. Weighted by the kernel over the density they were drawn with: 99.65 % (seed 0); over
+    seeds 0-5 a mean of 100.05 %, one seed 101.31 % (the ratio of sums over four rays a face is what moves)."""
     scene = scalable_scene.make_scene(5000, seed=0)
     rho = np.asarray(scene["reflectance"])
     scene["reflectance"] = np.ascontiguousarray(rho * 0.01, dtype=rho.dtype)
-    ratio = absorbed_over_emitted(scene, {"epsilon": 0.002})
-    print(f"\ndark 5k office at epsilon 0.002: absorbed / emitted {ratio:.4f}")
-    assert abs(ratio - 1) <= 0.0075
+    check_balance("dark 5k office", scene, {"epsilon": 0.002}, range(6), 0.0075, 0.015)
+
+
+def test_seeds_draw_other_rays():
+    """The measure above sees the pattern: two seeds of the boxes room differ (else the means would be of one bake)."""
+    r = balance_over_seeds(_room_with_boxes(), {"epsilon": 0.002}, [0, 1])
+    assert r[0] != r[1]
 
 
 def test_the_measure_sees_lost_light():

@@ -102,7 +102,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     // Lamps and the world light the faces before anything is linked: the faces' start radiosity is what
     // they reflect of it, so the refiner sees them as the sources they are, and its threshold is
     // relative to that light when no face emits (Refiner's scale).
-    auto lightSet = std::make_shared<LightSet>(scene, &rays, settings.lightRays);
+    auto lightSet = std::make_shared<LightSet>(scene, &rays, settings.lightRays, settings.seed);
     LightStats lightStats;
     if (settings.convolution && !lightSet->empty()) {
         auto sun = std::make_shared<SunTextures>(scene, settings, sol->threads_);
@@ -237,7 +237,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
                     gatherRays = settings.lightRays;
                     break;
                 }
-        auto direct = std::make_shared<DirectLight>(scene, rays, gatherRays, std::move(excluded));
+        auto direct = std::make_shared<DirectLight>(scene, rays, gatherRays, std::move(excluded), settings.seed);
         std::vector<Rgb> shadowed, unoccluded;
         solver.directIrradiance(links, shadowed, unoccluded);
         std::vector<Rgb> reflected = conv.empty() ? std::vector<Rgb>{} : textures.reflected(h, conv);

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "geometry/form_factor.h"
+#include "util/seed.h"
 #include "util/sobol.h"
 
 namespace penumbra {
@@ -23,9 +24,10 @@ Vec3 pointOn(const Polygon& g, double s, double t, double& jac) {
 }  // namespace
 
 DirectLight::DirectLight(const Scene& sc, const RayCaster& rays, int maxRays,
-                         std::vector<std::vector<int>> excluded)
+                         std::vector<std::vector<int>> excluded, int seed)
     : sc_(sc), rays_(rays), excluded_(std::move(excluded)) {
     maxRays_ = std::clamp(maxRays, 0, 256);
+    seedShift(seed, shift_);
     lift_ = 1e-5 * sc.diagonal;
     for (size_t i = 0; i < sc.polygons.size(); ++i) {
         const ScenePolygon& p = sc.polygons[i];
@@ -84,8 +86,8 @@ double DirectLight::visibility(const Emitter& e, const Vec3& p, const Vec3& n, c
     for (const Polygon& g : e.geoms) {
         double cell = g.area() / per;
         for (int k = 0; k < per && total < 256; ++k) {
-            double s = std::fmod(sobol(uint32_t(k), 0) + 0.5 / per, 1.0);
-            double t = std::fmod(sobol(uint32_t(k), 1) + 0.5 / per, 1.0);
+            double s = std::fmod(sobol(uint32_t(k), 0) + 0.5 / per + shift_[0], 1.0);
+            double t = std::fmod(sobol(uint32_t(k), 1) + 0.5 / per + shift_[1], 1.0);
             double jac;
             Vec3 q = pointOn(g, s, t, jac);
             if (g.n == 3) jac *= 2;  // the triangle's mapping covers it with density 2s

@@ -22,7 +22,9 @@ class DirectLight {
 public:
     // `maxRays`: rays per emitter group and point at most, 0 for none; `excluded[p]`: the emitting
     // faces whose light polygon p takes some other way (a convolution link's texture), ascending.
-    DirectLight(const Scene& sc, const RayCaster& rays, int maxRays, std::vector<std::vector<int>> excluded);
+    // `seed`: the sample pattern (util/seed.h); 0 is the default one.
+    DirectLight(const Scene& sc, const RayCaster& rays, int maxRays, std::vector<std::vector<int>> excluded,
+                int seed = 0);
     // Irradiance (W/m^2) at p with normal n on receiving polygon `receiver`; recentred coordinates.
     Rgb irradiance(const Vec3& p, const Vec3& n, int receiver, DirectStats* stats = nullptr) const;
     size_t emitters() const { return emitters_.size(); }
@@ -54,6 +56,7 @@ private:
     std::vector<Emitter> emitters_;
     std::vector<std::vector<int>> excluded_;
     int maxRays_;
+    double shift_[2];  // the seed's turn of the Sobol' points
     double lift_;
 };
 

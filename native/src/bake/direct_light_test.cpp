@@ -90,6 +90,31 @@ TEST(FinalGather, HalfHiddenLampSeesItsVisiblePart) {
     }
 }
 
+// A seed turns the gather's Sobol' points: behind the card's edge each seed reads the visible part through
+// other points, within the same steps of it.
+TEST(FinalGather, ASeedTurnsTheGathersPointsNotItsAnswer) {
+    const double E = 10;
+    TestScene t = lampOverFloor(0.5, true, 0.0);
+    auto sol = solve(t.input(), Settings{}, nullptr);
+    RayCaster rays(sol->scene());
+    const Vec3 off = sol->scene().offset;
+    const std::vector<double> xs = {-1.5, -0.5, 0.0, 0.2, 0.5, 1.5};
+    std::vector<double> read[2];
+    for (int k = 0; k < 2; ++k) {
+        DirectLight direct(sol->scene(), rays, 64, {}, k == 0 ? 0 : 11);
+        for (double x : xs) {
+            Vec3 p{x, 0.1, 0};
+            double xc = x + (0.0 - x) * (1.0 / 0.99);
+            double lo = std::clamp(xc, -0.5, 0.5);
+            double expect = lo < 0.5 ? pointToPolygonFormFactor(p, {0, 0, 1}, lampPart(lo, 0.5)) : 0.0;
+            double full = pointToPolygonFormFactor(p, {0, 0, 1}, lampPart(-0.5, 0.5));
+            read[k].push_back(direct.irradiance(p - off, {0, 0, 1}, 0).x / E);
+            EXPECT_NEAR(read[k].back(), expect, 0.02 * full) << "x = " << x << ", seed " << k;
+        }
+    }
+    EXPECT_NE(read[0], read[1]);
+}
+
 // A card hiding the whole lamp from the floor's middle: in shadow as it is, but hidden from shadow rays
 // (Ray Visibility > Shadow off, kNoLampShadow) it lets the final gather's rays through, and the floor
 // gets the bare lamp's light exactly (the card reflects nothing, so nothing else reaches the floor).

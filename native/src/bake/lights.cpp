@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "util/parallel.h"
+#include "util/seed.h"
 #include "util/sobol.h"
 
 namespace penumbra {
@@ -120,15 +121,15 @@ Rgb sphereLamp(const Light& l, const Vec3& p, const Vec3& n, double d2, const Ve
 
 }  // namespace
 
-LightSet::LightSet(const Scene& sc, const RayCaster* rays, int maxRays)
-    : sc_(sc), rays_(rays), maxRays_(powerOfTwoBelow(std::clamp(maxRays, 1, kMaxRays))) {
+LightSet::LightSet(const Scene& sc, const RayCaster* rays, int maxRays, int seed)
+    : sc_(sc), rays_(rays), maxRays_(powerOfTwoBelow(std::clamp(maxRays, 1, kMaxRays))), seed_(seed) {
+    seedShift(seed, shift_);
     lift_ = 1e-5 * sc.diagonal;
     far_ = 4 * sc.diagonal;
 }
 
 Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, LightStats* stats) const {
-    static const double none[2] = {0, 0};
-    return irradiance(p, n, maxRays, none, stats);
+    return irradiance(p, n, maxRays, shift_, stats);
 }
 
 Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const {
@@ -136,8 +137,7 @@ Rgb LightSet::irradiance(const Vec3& p, const Vec3& n, int maxRays, const double
 }
 
 Rgb LightSet::irradianceOn(int polygon, const Vec3& p, const Vec3& n) const {
-    static const double none[2] = {0, 0};
-    return irradianceOn(polygon, p, n, -1, none, nullptr);
+    return irradianceOn(polygon, p, n, -1, shift_, nullptr);
 }
 
 Rgb LightSet::irradianceOn(int polygon, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
@@ -328,7 +328,7 @@ Rgb LightSet::elementIrradiance(const Element& e, const Vec3& n, LightStats* sta
     int m = std::max(1, std::min(maxRays_, 32) / 4);
     Rgb sum;
     for (int k = 0; k < np; ++k) {
-        uint64_t h = (e.key + uint64_t(k) + 1) * 0x9E3779B97F4A7C15ull;
+        uint64_t h = (seeded(e.key, seed_) + uint64_t(k) + 1) * 0x9E3779B97F4A7C15ull;
         h ^= h >> 29;
         h *= 0xBF58476D1CE4E5B9ull;
         h ^= h >> 32;

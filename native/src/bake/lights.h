@@ -25,7 +25,8 @@ public:
     // `rays`: null for no shadows at all. `maxRays`: sample points per light and point at most, for
     // lights with a size and the world (rounded down to a power of two, at most kMaxRays; up to 32 for
     // elements).
-    LightSet(const Scene& sc, const RayCaster* rays, int maxRays);
+    // `seed`: the sample pattern (util/seed.h); 0 is the default one.
+    LightSet(const Scene& sc, const RayCaster* rays, int maxRays, int seed = 0);
     bool empty() const { return sc_.lights.empty(); }
     size_t size() const { return sc_.lights.size(); }
 
@@ -54,6 +55,8 @@ private:
     const Scene& sc_;
     const RayCaster* rays_;
     int maxRays_;
+    int seed_;
+    double shift_[2];  // the seed's turn of the bake points' Sobol' set
     double lift_, far_;
     std::shared_ptr<const SunTextures> sunTextures_;
 };

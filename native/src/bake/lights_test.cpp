@@ -297,6 +297,35 @@ TEST(Lights, SoftSunShadowIsHalfUnderTheEdge) {
     EXPECT_NEAR(floorIrradiance(*sol, 0.2, 0) / full, 1, 1e-4);
 }
 
+// A seed turns a lamp's sample set at every bake point: in its penumbra (a point lamp of radius 0.5 two metres up,
+// over a card's edge one metre up) the light is read through other points of the lamp, within the steps of its
+// set; in full light nothing moves.
+TEST(Lights, ASeedTurnsTheSampleSetNotTheLight) {
+    TestScene t = openFloor();
+    t.quad({-5, -5, 1}, {0, -5, 1}, {0, 5, 1}, {-5, 5, 1}, {}, {}, 0, 1);
+    t.quad({-5, -5, 1}, {-5, 5, 1}, {0, 5, 1}, {0, -5, 1}, {}, {}, 0, 1);
+    const Light lamp = pointLight({0, 0, 2}, 100, 0.5);
+    const double xs[] = {-0.3, -0.1, 0.0, 0.1, 0.3};
+    double read[2][5], open[2];
+    for (int k = 0; k < 2; ++k) {
+        Settings s;
+        s.seed = k == 0 ? 0 : 7;
+        s.convolution = false;  // the lamp's shadow from its points, not from a texture (sun_textures.h)
+        auto sol = solveLit(t, {lamp}, s);
+        for (int i = 0; i < 5; ++i) read[k][i] = floorIrradiance(*sol, xs[i], 0);
+        open[k] = floorIrradiance(*sol, 3.0, 0);
+    }
+    const Vec3 d = Vec3{0, 0, 2} - Vec3{0, 0, 0};
+    const double full = 100 * (d.z / length(d)) / (4 * M_PI * length2(d));  // below the lamp, unshadowed
+    bool moved = false;
+    for (int i = 0; i < 5; ++i) {
+        EXPECT_NEAR(read[0][i], read[1][i], 0.05 * full) << "x = " << xs[i];  // 2.7 % at most, measured
+        moved |= read[0][i] != read[1][i];
+    }
+    EXPECT_TRUE(moved);
+    EXPECT_EQ(open[0], open[1]);
+}
+
 // The lights' light is reflected on through the hierarchy: a point light in a closed room of uniform
 // albedo rho puts rho P / (1 - rho) of reflected power on the walls in all (all of P lands on them).
 TEST(Lights, PointLightInAClosedRoomConservesEnergy) {

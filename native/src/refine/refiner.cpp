@@ -12,6 +12,7 @@
 #include "util/error.h"
 #include "util/memory.h"
 #include "util/parallel.h"
+#include "util/seed.h"
 
 namespace penumbra {
 namespace {
@@ -58,10 +59,10 @@ PENUMBRA_COUNTER(kSourceSharedLinks, "source_shared_links");  // near cluster so
 PENUMBRA_COUNTER(kSharedClusterLinks, "shared_cluster_links");  // partly seen, shared by the faces' own shares
 
 // Deterministic per-link random numbers: the sample pattern of a link depends only on the identity
-// of its two elements, never on thread timing or allocation order.
+// of its two elements and the `seed` setting, never on thread timing or allocation order.
 struct Rng {
     uint64_t s;
-    explicit Rng(uint64_t seed) : s(seed ? seed : 0x1234567ull) {}
+    Rng(uint64_t key, int seed) : s(seeded(key, seed) ? seeded(key, seed) : 0x1234567ull) {}
     double next() {
         s ^= s << 13;
         s ^= s >> 7;
@@ -545,7 +546,7 @@ void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double tr
     // With a stopping rule the first round is a quarter round: most links need no more.
     int budget = batches > 0 ? batches * 256 : n;
     if (transfer > 0) m = 8, n = 64;
-    Rng rng(r.key ^ (s.key * 0x9E3779B97F4A7C15ull));
+    Rng rng(r.key ^ (s.key * 0x9E3779B97F4A7C15ull), settings_.seed);
     Vec3 from[256], to[256];
     // A source that has been cut into parts with different radiosities (as a receiver) is sampled by
     // its light rather than its area: V is then the visible share of what it sends, which is what the
@@ -871,7 +872,7 @@ bool Refiner::buildSampler(int node, const Vec3& toward, bool receiver, NodeSamp
 
 void Refiner::drawFromSampler(const NodeSampler& s, uint64_t seed, int n, Vec3* pts, int* faces) const {
     const Scene& sc = h_.scene();
-    Rng rng(seed);
+    Rng rng(seed, settings_.seed);
     for (int i = 0; i < n; ++i) {
         double u = (i + rng.next()) / n * s.total;
         size_t j = std::min(size_t(std::lower_bound(s.cdf.begin(), s.cdf.end(), u) - s.cdf.begin()), s.cdf.size() - 1);
@@ -906,7 +907,7 @@ bool Refiner::sampleNode(int node, const Vec3& toward, bool receiver, uint64_t s
                            Vec3* pts) const {
     const Scene& sc = h_.scene();
     if (!isClusterNode(node)) {
-        Rng rng(seed);
+        Rng rng(seed, settings_.seed);
         const Element& e = h_[node];
         int m = std::max(1, int(std::lround(std::sqrt(double(n)))));
         const Vec3 lift = sc.polygons[e.polygon].normal * lift_;
@@ -976,7 +977,7 @@ bool Refiner::shareByFaces(int ri, int si, bool nearSource) {
         } else if (!sampleNode(si, e.center, false, faceSeed, kFaceRays, toFace)) {
             continue;
         }
-        Rng rng(seed ^ (uint64_t(j) + 1) * 0xBF58476D1CE4E5B9ull);
+        Rng rng(seed ^ (uint64_t(j) + 1) * 0xBF58476D1CE4E5B9ull, settings_.seed);
         for (int i = 0; i < kFaceRays; ++i) {
             Vec3 f = e.pointAt((i % 2 + rng.next()) / 2, (i / 2 % 2 + rng.next()) / 2) + sp.normal * lift_;
             // A source point behind the face sends it nothing (its form factor is zero there); a ray to it
@@ -1047,7 +1048,7 @@ bool Refiner::shareSourceByFaces(int ri, int si, Link& l) {
         for (int q = 0; q < r.n; ++q) rInFront |= dot(r.v[q] - e.v[0], sp.normal) > lift_;
         if (!sInFront || !rInFront) continue;
         facing = true;
-        Rng rng(seed ^ (uint64_t(j) + 1) * 0xBF58476D1CE4E5B9ull);
+        Rng rng(seed ^ (uint64_t(j) + 1) * 0xBF58476D1CE4E5B9ull, settings_.seed);
         for (int i = 0; i < kFaceRays; ++i) {
             Vec3 f = r.pointAt((i % 2 + rng.next()) / 2, (i / 2 % 2 + rng.next()) / 2) + nr * lift_;
             Vec3 t = e.pointAt(rng.next(), rng.next()) + sp.normal * lift_;

@@ -113,6 +113,9 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        shadow of a lamp with a size (radius, sun angle) and the world's occlusion; up to 32 per element     \
        for the light the solve carries on. A hard-shadowed lamp (radius 0) always takes one ray. */         \
     X(int, lightRays, "light_rays", 256, '[', 1, 1024, ']')                                                 \
+    /* Which sample pattern the rays use (links' visibility, faces' shares, lamps' and the gather's points): \
+       0 is the default pattern; another seed gives a bake that differs from it by sampling noise alone. */ \
+    X(int, seed, "seed", 0, '[', 0, std::numeric_limits<int>::max(), ']')                                 \
     /* Budgets: a scene that would exceed one stops with BudgetExceeded before the memory is taken,         \
        instead of being killed by the system (or, for face pairs, running for hours). */                    \
     /* quadtree elements, ~400 bytes each at the peak (canonicalize) */                                     \

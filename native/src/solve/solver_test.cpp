@@ -215,6 +215,34 @@ TEST(Furnace, ReflectedRadianceIsUniform) {
     for (float v : L) EXPECT_NEAR(v, expect, 0.005 * expect);
 }
 
+// Another seed draws every link's rays and every face's share anew (and turns the lamps' points): the lit room's
+// lightmap then moves by its sampling noise alone, and a given seed is as deterministic as the default.
+TEST(Solve, ASeedRedrawsTheRaysNotTheAnswer) {
+    const testing::TestScene room = testing::litRoom();
+    auto bake = [&](int seed, int threads) {
+        Settings s;
+        s.epsilon = 0.002;
+        s.seed = seed;
+        s.threads = threads;
+        auto sol = solve(room.input(), s, nullptr);
+        return testing::bakeAll(*sol, room, 32);
+    };
+    const std::vector<float> base = bake(0, 0);
+    double ref2 = 0;
+    for (float v : base) ref2 += double(v) * v;
+    for (int seed : {1, 2}) {
+        const std::vector<float> other = bake(seed, 0);
+        ASSERT_EQ(other.size(), base.size());
+        double d2 = 0;
+        for (size_t i = 0; i < base.size(); ++i) d2 += (double(other[i]) - base[i]) * (double(other[i]) - base[i]);
+        const double rms = std::sqrt(d2 / ref2);
+        std::printf("seed %d against 0: relative RMS %.4f\n", seed, rms);
+        EXPECT_GT(rms, 1e-5) << "seed " << seed << " drew the same rays";
+        EXPECT_LT(rms, 0.01) << "seed " << seed;  // measured 0.23 and 0.33 %
+    }
+    EXPECT_EQ(bake(1, 1), bake(1, 2));
+}
+
 TEST(Solve, ThreadCountDoesNotChangeTheResult) {
     auto box = testing::furnaceBox(1.0, 2, {0.7, 0.5, 0.3}, {0, 0, 0});
     box.emission[0] = box.emission[1] = box.emission[2] = 10.0f;  // one emitting face
