@@ -27,6 +27,8 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
+sys.path.insert(0, HERE)
+from scaling import import_native  # noqa: E402  (the module from --build, as bench/scaling.py finds it)
 
 
 def parse_args(argv=None):
@@ -46,15 +48,6 @@ def parse_args(argv=None):
     if "seed" in args.settings:
         ap.error("--settings: leave out 'seed'; --seeds chooses them")
     return args
-
-
-def import_native(build):
-    for d in (os.path.join(build, "penumbra"), build):
-        if os.path.isdir(d) and any(f.startswith("_native") and f.endswith(".so") for f in os.listdir(d)):
-            sys.path.insert(0, d)
-            import _native
-            return _native
-    raise SystemExit(f"seed_spread: no _native*.so in {build}/penumbra or {build}; run bash scripts/build.sh")
 
 
 def face_points(scene):

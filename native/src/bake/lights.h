@@ -30,9 +30,11 @@ public:
     bool empty() const { return sc_.lights.empty(); }
     size_t size() const { return sc_.lights.size(); }
 
-    // Irradiance (W/m^2) at p with normal n, recentred coordinates; `maxRays` < 0 takes the set's.
+    // Irradiance (W/m^2) at p with normal n, recentred coordinates; `maxRays` < 0 takes the set's. The sample
+    // set is the one the seed turned (util/seed.h), as in irradianceOn without a shift.
     Rgb irradiance(const Vec3& p, const Vec3& n, int maxRays = -1, LightStats* stats = nullptr) const;
-    // The same with the sample set turned by `shift` in [0, 1)^2 (a toroidal shift of the Sobol' net).
+    // The same with the sample set turned by `shift` in [0, 1)^2 (a toroidal shift of the Sobol' net), in place
+    // of the seed's turn.
     Rgb irradiance(const Vec3& p, const Vec3& n, int maxRays, const double shift[2], LightStats* stats) const;
     // The same at a point of face `polygon`, whose suns' shadows come from their textures where it has them.
     Rgb irradianceOn(int polygon, const Vec3& p, const Vec3& n, int maxRays, const double shift[2],
