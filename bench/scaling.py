@@ -80,13 +80,18 @@ def parse_args(argv=None):
         ap.error(f"--settings is not JSON: {e}")
     if not isinstance(args.settings, dict):
         ap.error("--settings must be a JSON object, e.g. '{\"clustering\": true}'")
+    args.sizes = sorted(set(parse_sizes(args.sizes)))
+    return args
+
+
+def parse_sizes(text):
+    """Polygon counts from a comma-separated list, a k suffix meaning thousands (1k, 5k, 20000)."""
     sizes = []
-    for s in args.sizes.split(","):
+    for s in text.split(","):
         s = s.strip().lower()
         if s:
             sizes.append(int(float(s[:-1]) * 1000) if s.endswith("k") else int(s))
-    args.sizes = sorted(set(sizes))
-    return args
+    return sizes
 
 
 def import_native(build):

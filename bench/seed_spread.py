@@ -28,7 +28,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 sys.path.insert(0, os.path.join(REPO, "examples"))
 sys.path.insert(0, HERE)
-from scaling import import_native  # noqa: E402  (the module from --build, as bench/scaling.py finds it)
+from scaling import import_native, parse_sizes  # noqa: E402  (the module from --build, as bench/scaling.py finds it)
 
 
 def parse_args(argv=None):
@@ -41,7 +41,7 @@ def parse_args(argv=None):
     ap.add_argument("--json", default="", help="write the results here")
     ap.add_argument("--plot", default="", help="write the figure here (PNG)")
     args = ap.parse_args(argv)
-    args.sizes = [int(float(s[:-1]) * 1000) if s.lower().endswith("k") else int(s) for s in args.sizes.split(",")]
+    args.sizes = parse_sizes(args.sizes)
     args.settings = json.loads(args.settings)
     if args.seeds < 2:
         ap.error("--seeds: at least 2 (the spread of one bake is not measurable)")

@@ -62,7 +62,9 @@ PENUMBRA_COUNTER(kSharedClusterLinks, "shared_cluster_links");  // partly seen, 
 // of its two elements and the `seed` setting, never on thread timing or allocation order.
 struct Rng {
     uint64_t s;
-    Rng(uint64_t key, int seed) : s(seeded(key, seed) ? seeded(key, seed) : 0x1234567ull) {}
+    Rng(uint64_t key, int seed) : s(seeded(key, seed)) {
+        if (s == 0) s = 0x1234567ull;  // xorshift's one fixed point
+    }
     double next() {
         s ^= s << 13;
         s ^= s >> 7;
