@@ -84,7 +84,12 @@ private:
     bool facesToward(int node, const Bounds& other, bool receiver) const;
     // Points on the faces of a node that look toward `toward`, spread by projected area; false when
     // none does.
-    bool sampleNode(int node, const Vec3& toward, bool receiver, uint64_t seed, int n, Vec3* pts) const;
+    // faces (optional): the polygon each point was drawn from.
+    bool sampleNode(int node, const Vec3& toward, bool receiver, uint64_t seed, int n, Vec3* pts,
+                    int* faces = nullptr) const;
+    // Whether a blocked ray from sourcePoint, a point of reflecting face `face`, toward receiverPoint began
+    // inside a closed surface (see estimateVisibility): such a ray does not count.
+    bool fromInsideSolid(int face, const Vec3& sourcePoint, const Vec3& receiverPoint) const;
     struct NodeSampler;
     // A cluster's faces as sampleNode draws them toward `toward`; false when none faces it.
     bool buildSampler(int cluster, const Vec3& toward, bool receiver, NodeSampler& out) const;
@@ -137,7 +142,8 @@ private:
     double minEdge_ = 0;
     std::vector<double> minArea_;  // per scene polygon: no element of it is split at or below this area
     double lift_;  // ray end points are lifted off their surfaces by this much
-    std::vector<char> touched_;  // per scene polygon: RayCaster::touchedFaces
+    std::vector<char> touched_;    // per scene polygon: RayCaster::touchedFaces
+    std::vector<char> footprint_;  // per scene polygon: RayCaster::footprintFaces
     int strata_;   // visibility rays = strata_^2
     bool firstPass_ = false;
     Counters& counters_;

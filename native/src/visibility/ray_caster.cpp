@@ -193,6 +193,84 @@ std::vector<char> RayCaster::touchedFaces(const Scene& scene, double lift) const
     return out;
 }
 
+namespace {
+
+// Whether the segment [a, b] in p's plane runs through p's interior at more than `inset` from its edges, for
+// a convex p counter-clockwise around its normal.
+bool crossesInterior(const ScenePolygon& p, const Vec3& a, const Vec3& b, double inset) {
+    double t0 = 0, t1 = 1;
+    const Vec3 d = b - a;
+    for (int j = 0; j < p.geom.n; ++j) {
+        const Vec3& v0 = p.geom.v[size_t(j)];
+        const Vec3& v1 = p.geom.v[size_t((j + 1) % p.geom.n)];
+        const Vec3 m = normalize(cross(p.normal, v1 - v0));  // inward
+        const double f = dot(a - v0, m) - inset, fd = dot(d, m);
+        if (fd > 0)
+            t0 = std::max(t0, -f / fd);
+        else if (fd < 0)
+            t1 = std::min(t1, -f / fd);
+        else if (f < 0)
+            return false;
+        if (t0 >= t1) return false;
+    }
+    return (t1 - t0) * length(d) > inset;
+}
+
+bool isConvex(const ScenePolygon& p) {
+    for (int j = 0; j < p.geom.n; ++j) {
+        const Vec3& v0 = p.geom.v[size_t(j)];
+        const Vec3& v1 = p.geom.v[size_t((j + 1) % p.geom.n)];
+        const Vec3& v2 = p.geom.v[size_t((j + 2) % p.geom.n)];
+        if (dot(cross(v1 - v0, v2 - v1), p.normal) < 0) return false;
+    }
+    return true;
+}
+
+}  // namespace
+
+std::vector<char> RayCaster::footprintFaces(const Scene& scene, double lift, const std::vector<char>& touched) const {
+    std::vector<char> out = touched;
+    for (size_t i = 0; i < scene.polygons.size(); ++i) {
+        const ScenePolygon& p = scene.polygons[i];
+        if (!out[i] || !isConvex(p)) continue;
+        Bounds near = polygonBox(p);
+        near.lo = near.lo - Vec3{lift, lift, lift};
+        near.hi = near.hi + Vec3{lift, lift, lift};
+        const Vec3 origin = p.geom.v[0];
+        const size_t front = occluderOf(scene.polygons, i);
+        bool found = false;
+        occluders_.query([&](const Bounds& node) { return !found && overlaps(node, near); },
+                         [&](int b) {
+                             size_t q = size_t(occluderPolygon_[size_t(b)]);
+                             if (found || q == front || !overlaps(occluders_.box(b), near)) return;
+                             // Where q meets p's plane: its corners in the plane and its edges' crossings.
+                             const Polygon& g = scene.polygons[q].geom;
+                             Vec3 meet[2 * Polygon::kMaxVerts];
+                             int m = 0;
+                             bool inFront = false;
+                             for (int k = 0; k < g.n; ++k) {
+                                 const Vec3& a = g.v[size_t(k)];
+                                 const Vec3& c = g.v[size_t((k + 1) % g.n)];
+                                 const double da = dot(a - origin, p.normal), dc = dot(c - origin, p.normal);
+                                 inFront |= da > lift;
+                                 if (std::fabs(da) <= lift) meet[m++] = a;
+                                 if ((da > lift && dc < -lift) || (da < -lift && dc > lift))
+                                     meet[m++] = a + (c - a) * (da / (da - dc));
+                             }
+                             if (!inFront || m < 2) return;
+                             // A plane meets a convex polygon along one segment: between its two farthest points.
+                             int x0 = 0, x1 = 1;
+                             double far = -1;
+                             for (int x = 0; x < m; ++x)
+                                 for (int y = x + 1; y < m; ++y)
+                                     if (length2(meet[x] - meet[y]) > far) far = length2(meet[x] - meet[y]), x0 = x, x1 = y;
+                             found = crossesInterior(p, meet[x0], meet[x1], lift);
+                         });
+        out[i] = found;
+    }
+    return out;
+}
+
 std::vector<int> RayCaster::occludersInShaft(const Shaft& shaft) const {
     std::vector<int> out;
     occluders_.query([&](const Bounds& node) { return shaft.classify(node) != Shaft::Outside; },

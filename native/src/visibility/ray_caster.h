@@ -53,6 +53,12 @@ public:
     // box or a chair leg standing on a floor tile, a wall meeting it at a corner). Only such a polygon can
     // have points of its front inside a closed surface (metFromBehind from them); elsewhere the test is skipped.
     std::vector<char> touchedFaces(const Scene& scene, double lift) const;
+    // Of the touched faces (touchedFaces' answer), those that another occluding polygon reaching in front of
+    // them meets along a segment through their interior: the sides of a leg or a box standing on a floor
+    // tile, or sunk into it. Only there can part of a face's front lie inside a closed surface without the
+    // whole face being buried; a wall meeting a tile at its edge, or a foot standing on its neighbour, cannot.
+    // A face that is not convex keeps touchedFaces' answer.
+    std::vector<char> footprintFaces(const Scene& scene, double lift, const std::vector<char>& touched) const;
     // The first occluding polygon along the ray is met from behind: the origin lies inside a closed surface
     // (a two-sided face's back copy shares its front's triangles, so meeting those from behind is not that).
     bool metFromBehind(const Scene& scene, const Vec3& origin, const Vec3& dir, double far) const;

@@ -78,6 +78,29 @@ TEST(RayCaster, TouchedFacesAreTheOnesSomethingStandsOnOrMeets) {
     EXPECT_FALSE(touched[size_t(boxBottom + 1)]) << "the box's top is free";
 }
 
+TEST(RayCaster, FootprintFacesAreTheOnesSomethingStandsOn) {
+    // A cluster link's rays test a reflector's blocked rays for starting inside a solid only from these
+    // (Refiner::fromInsideSolid): a face that something merely meets at its edge has no point inside one.
+    int legTop = 0, boxBottom = 0;
+    auto t = tableScene(&legTop, &boxBottom);
+    Scene sc = buildScene(t.input());
+    RayCaster rays(sc);
+    const double lift = 1e-5 * sc.diagonal;
+    std::vector<char> touched = rays.touchedFaces(sc, lift);
+    std::vector<char> foot = rays.footprintFaces(sc, lift, touched);
+    const int tableBottom = 96, tableTop = 97, wallAtFloor = 32;
+    for (int tile : {5, 6, 9, 10}) EXPECT_TRUE(foot[size_t(tile)]) << "a leg stands on floor tile " << tile;
+    for (int tile : {0, 3, 12, 15}) {
+        EXPECT_TRUE(touched[size_t(tile)]) << "the walls meet corner tile " << tile;
+        EXPECT_FALSE(foot[size_t(tile)]) << "along its edges only: corner tile " << tile;
+    }
+    EXPECT_TRUE(touched[size_t(wallAtFloor)]);
+    EXPECT_FALSE(foot[size_t(wallAtFloor)]) << "the floor meets the wall at its lower edge";
+    EXPECT_TRUE(foot[size_t(tableTop)]) << "the box stands on the table";
+    EXPECT_TRUE(foot[size_t(tableBottom)]) << "the legs' tops lie inside the top's underside";
+    for (size_t i = 0; i < foot.size(); ++i) EXPECT_LE(foot[i], touched[i]) << "face " << i;
+}
+
 TEST(RayCaster, AFaceOverATwoSidedFacesBackIsNotBuried) {
     // A floor whose normals point down, two-sided (its back copy faces up and shares its triangles), under a
     // ceiling that faces down: the ceiling's rays meet the floor's triangles from behind, which is the back
