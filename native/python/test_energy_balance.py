@@ -156,3 +156,63 @@ def test_the_measure_sees_lost_light():
     ratio = absorbed_over_emitted(open_room, {"epsilon": 0.0002})
     print(f"\nopen room: absorbed / emitted {ratio:.4f}")
     assert ratio < 0.98
+
+
+def _floor_with_slabs(n=6, cover=0.5):
+    """A closed 3 x 3 x 2 m room whose floor is n x n tiles (albedo 0.8), each with a closed 1 cm slab standing on its
+    middle over `cover` of its area, walls and ceiling of 3 x 3 tiles (0.3), a lamp under the ceiling shining down."""
+    b = Builder()
+    w = 3.0 / n
+    h = w * np.sqrt(cover) / 2
+    for i in range(n):
+        for j in range(n):
+            x0, y0 = -1.5 + i * w, -1.5 + j * w
+            b.face([(x0, y0, 0), (x0 + w, y0, 0), (x0 + w, y0 + w, 0), (x0, y0 + w, 0)], "Floor", rho=0.8)
+            cx, cy = x0 + w / 2, y0 + w / 2
+            b.box((cx - h, cy - h, 0.0), (cx + h, cy + h, 0.01), "Slabs", rho=0.8)
+    for name, o, u, v in (("Ceiling", (-1.5, -1.5, 2), (0, 3, 0), (3, 0, 0)), ("Walls", (-1.5, -1.5, 0), (0, 3, 0), (0, 0, 2)),
+                          ("Walls", (1.5, -1.5, 0), (0, 0, 2), (0, 3, 0)), ("Walls", (-1.5, -1.5, 0), (0, 0, 2), (3, 0, 0)),
+                          ("Walls", (-1.5, 1.5, 0), (3, 0, 0), (0, 0, 2))):
+        o, u, v = (np.array(a, float) / 3 * (3 if k == 0 else 1) for k, a in enumerate((o, u, v)))
+        for i in range(3):
+            for j in range(3):
+                a = o + i * u + j * v
+                b.face([a, a + u, a + u + v, a + v], name, rho=0.3)
+    b.lamp(0.0, 0.0, 1.95, 1.0, 30.0)
+    keys = ("vertices", "polygons", "reflectance", "emission", "flags", "object_index", "object_names")
+    return dict(zip(keys, b.arrays()))
+
+
+def _ceiling_radiance(scene, settings):
+    v = np.asarray(scene["vertices"], np.float64)
+    names = list(scene["object_names"])
+    s = (np.arange(4) + 0.5) / 4
+    pts, nrm = [], []
+    for f, o in zip(scene["polygons"], scene["object_index"]):
+        if names[o] != "Ceiling":
+            continue
+        c = v[[i for i in f if i >= 0]]
+        n = np.cross(c[2] - c[0], c[3] - c[1])
+        n /= np.linalg.norm(n)
+        for a in s:
+            for t in s:
+                pts.append((1 - a) * (1 - t) * c[0] + a * (1 - t) * c[1] + a * t * c[2] + (1 - a) * t * c[3] + 1e-4 * n)
+                nrm.append(n)
+    sol = _native.solve(**scene, settings={"threads": 2, **settings})
+    return float(np.asarray(sol.radiance(np.float32(pts), np.float32(nrm)))[:, :3].mean()), sol.report["cluster_links"]
+
+
+def test_light_from_under_a_slab_is_not_cut_twice_by_cluster_links():
+    """Half of every floor tile lies under a slab: it receives nothing, so the tile's radiosity, its mean, already
+    holds that dark half, and what the tile reflects leaves from the other half. A ray from the hidden half meets the
+    slab's inside; counted as shadow, it cuts that light a second time. The element links have left such rays out
+    since stop 38 (so the solve without clustering is the yardstick here); the cluster links, face shares and source
+    shares counted them until stop 47: the ceiling, lit mostly by the floor, read 0.806 of the element links' answer
+    at epsilon 0.002, now 0.929. What is left of the gap is the source shares' (0.957 with source_shares off) and is
+    not understood yet; at the default epsilon both read 0.958 (the floor reaches the ceiling by other links)."""
+    scene = _floor_with_slabs()
+    on, cluster_links = _ceiling_radiance(scene, {"epsilon": 0.002})
+    off, _ = _ceiling_radiance(scene, {"epsilon": 0.002, "clustering": False})
+    print(f"\nslabs room: ceiling with clusters over without {on / off:.4f} ({cluster_links} cluster links)")
+    assert cluster_links > 500
+    assert on / off > 0.9
