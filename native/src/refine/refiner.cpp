@@ -83,15 +83,23 @@ double pointKernel(const Vec3& x, const Vec3& nx, const Vec3& y, const Vec3& ny)
 
 // The visible share of rays [a, b) weighted by their kernels (the share of the light that gets through), or of
 // the rays themselves where none has a weight; `seen` counts the rays through.
+// A ray whose weight is kLeftOut (it began inside a solid, Refiner::fromInsideSolid) does not count; with none
+// counted the share is unknown, and kLeftOut is returned.
+constexpr double kLeftOut = -1;
+
 double weightedShare(const char* vis, const std::vector<double>& weight, int a, int b, int& seen) {
     double wSeen = 0, wAll = 0;
+    int counted = 0;
     seen = 0;
     for (int i = a; i < b; ++i) {
+        if (weight[size_t(i)] == kLeftOut) continue;
+        ++counted;
         seen += vis[i];
         wAll += weight[size_t(i)];
         wSeen += vis[i] ? weight[size_t(i)] : 0.0;
     }
-    return wAll > 0 ? wSeen / wAll : double(seen) / (b - a);
+    if (counted == 0) return kLeftOut;
+    return wAll > 0 ? wSeen / wAll : double(seen) / counted;
 }
 
 // Quadrature points on an element in its (s, t) parametrisation: 2x2 Gauss on quads, the
@@ -1014,12 +1022,16 @@ bool Refiner::shareByFaces(int ri, int si, bool nearSource) {
         counters_.add(kRaysCluster, size_t(n));
         for (int i = 0; i < n; ++i)
             if (!vis[size_t(i)] && fromInsideSolid(sourceFace[size_t(i)], to[size_t(i)], from[size_t(i)]))
-                weight[size_t(i)] = 0;
+                weight[size_t(i)] = kLeftOut;
+        // A face whose every ray began inside a solid (four points of a tile half under a slab, one time in
+        // sixteen) takes the share of all the faces' counted rays, not none.
+        int seen;
+        const double all = std::max(0.0, weightedShare(vis.data(), weight, 0, n, seen));
         for (int j = 0; j < k; ++j) {
             int a = start[size_t(j)], b = start[size_t(j + 1)];
             if (b <= a) continue;
-            int seen;
-            share[size_t(j)] = float(weightedShare(vis.data(), weight, a, b, seen));
+            const double f = weightedShare(vis.data(), weight, a, b, seen);
+            share[size_t(j)] = float(f == kLeftOut ? all : f);
         }
     }
     counters_.add(kSharedClusterLinks);
@@ -1087,7 +1099,7 @@ bool Refiner::shareSourceByFaces(int ri, int si, Link& l) {
         for (int j = 0; j < k; ++j) {
             const int p = ct.polygons()[size_t(c.begin + j)];
             for (int i = start[size_t(j)]; i < start[size_t(j + 1)]; ++i)
-                if (!vis[size_t(i)] && fromInsideSolid(p, to[size_t(i)], from[size_t(i)])) weight[size_t(i)] = 0;
+                if (!vis[size_t(i)] && fromInsideSolid(p, to[size_t(i)], from[size_t(i)])) weight[size_t(i)] = kLeftOut;
         }
     }
     // Each face's weight is its visible share times its form factor averaged over the receiver's quadrature
@@ -1097,11 +1109,14 @@ bool Refiner::shareSourceByFaces(int ri, int si, Link& l) {
     Vec3 pts[4];
     const int np = samplePoints(r, pts);
     int seenAll = 0;
+    int seen;
+    const double all = n > 0 ? std::max(0.0, weightedShare(vis.data(), weight, 0, n, seen)) : 0.0;
     for (int j = 0; j < k; ++j) {
         int a = start[size_t(j)], b = start[size_t(j + 1)];
         if (b <= a) continue;
-        int seen;
-        const double share = weightedShare(vis.data(), weight, a, b, seen);
+        double share = weightedShare(vis.data(), weight, a, b, seen);
+        // Every ray of the face began inside a solid: the share of all the faces' counted rays (as shareByFaces).
+        if (share == kLeftOut) share = all, seen = share > 0;
         if (seen == 0) continue;
         seenAll += seen;
         int p = ct.polygons()[size_t(c.begin + j)];
