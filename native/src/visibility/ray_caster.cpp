@@ -149,10 +149,14 @@ std::vector<char> RayCaster::buriedFaces(const Scene& scene, double lift) const 
     for (size_t i = 0; i < scene.polygons.size(); ++i) {
         const ScenePolygon& p = scene.polygons[i];
         if (!p.receives) continue;
-        Vec3 c = p.geom.centroid(), pts[5];
+        // Points near the corners too: a slab standing on the middle of a floor tile covers the centre and the
+        // points halfway to the corners once it covers a quarter of the tile, and a tile taken for buried
+        // gets no light from any cluster link though half of it is open (its ceiling's light: none of it).
+        Vec3 c = p.geom.centroid(), pts[9];
         int n = 0;
         pts[n++] = c;
-        for (int k = 0; k < p.geom.n && n < 5; ++k) pts[n++] = (c + p.geom.v[k]) * 0.5;
+        for (int k = 0; k < p.geom.n && n < 9; ++k) pts[n++] = (c + p.geom.v[k]) * 0.5;
+        for (int k = 0; k < p.geom.n && n < 9; ++k) pts[n++] = c + (p.geom.v[k] - c) * 0.95;
         bool inside = true;
         for (int k = 0; k < n && inside; ++k) inside = metFromBehind(scene, pts[k] + p.normal * lift, p.normal, far);
         out[i] = inside;

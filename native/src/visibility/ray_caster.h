@@ -45,8 +45,8 @@ public:
                       const HalfSpace* above, int numAbove, double height) const;
 
     // Per polygon: its front lies inside a solid (a desk leg's top flush under the desk, a box's bottom on
-    // the floor): the first surface that a ray off it meets, from its centre and up to four inner points,
-    // is always met from behind. Such a face sees nothing; cluster links, which cannot see shadows inside
+    // the floor): the first surface that a ray off it meets, from its centre, the points halfway to its corners
+    // and points near its corners, is always met from behind. Such a face sees nothing; cluster links, which cannot see shadows inside
     // a cluster, must not light it.
     std::vector<char> buriedFaces(const Scene& scene, double lift) const;
     // Per polygon: some other occluding polygon comes within `lift` of its box and reaches in front of it (a

@@ -78,6 +78,24 @@ TEST(RayCaster, TouchedFacesAreTheOnesSomethingStandsOnOrMeets) {
     EXPECT_FALSE(touched[size_t(boxBottom + 1)]) << "the box's top is free";
 }
 
+TEST(RayCaster, ATileHalfUnderASlabIsNotBuried) {
+    // A slab over the middle half of a tile covers its centre and the points halfway to its corners; taken for
+    // buried, the tile got no light from any cluster link (native/python/test_energy_balance.py's slabs room).
+    // Under a slab larger than itself the tile is buried.
+    for (double half : {0.3536, 0.6}) {
+        testing::TestScene t;
+        t.names = {"Floor", "Slab", "Ceiling"};
+        Rgb grey{0.5, 0.5, 0.5};
+        t.quad({-0.5, -0.5, 0}, {0.5, -0.5, 0}, {0.5, 0.5, 0}, {-0.5, 0.5, 0}, grey, {}, 0, 0);
+        t.box({-half, -half, 0}, {half, half, 0.01}, grey, {}, false, 1);
+        t.quad({-1, -1, 1}, {-1, 1, 1}, {1, 1, 1}, {1, -1, 1}, grey, {10, 10, 10}, 0, 2);
+        Scene sc = buildScene(t.input());
+        RayCaster rays(sc);
+        std::vector<char> buried = rays.buriedFaces(sc, 1e-5 * sc.diagonal);
+        EXPECT_EQ(int(buried[0]), half > 0.5 ? 1 : 0) << "slab half-width " << half;
+    }
+}
+
 TEST(RayCaster, FootprintFacesAreTheOnesSomethingStandsOn) {
     // A cluster link's rays test a reflector's blocked rays for starting inside a solid only from these
     // (Refiner::fromInsideSolid): a face that something merely meets at its edge has no point inside one.
