@@ -174,24 +174,30 @@ bool RayCaster::metFromBehind(const Scene& scene, const Vec3& origin, const Vec3
     return !hasBackCopy(scene.polygons, hp) && dot(scene.polygons[hp].normal, dir) > 0;
 }
 
+template <class Visit>
+void RayCaster::forOccludersNear(const Scene& scene, size_t i, double lift, const bool& done, Visit&& visit) const {
+    Bounds near = polygonBox(scene.polygons[i]);
+    near.lo = near.lo - Vec3{lift, lift, lift};
+    near.hi = near.hi + Vec3{lift, lift, lift};
+    const size_t front = occluderOf(scene.polygons, i);
+    occluders_.query([&](const Bounds& node) { return !done && overlaps(node, near); },
+                     [&](int b) {
+                         size_t q = size_t(occluderPolygon_[size_t(b)]);
+                         if (done || q == front || !overlaps(occluders_.box(b), near)) return;
+                         visit(q);
+                     });
+}
+
 std::vector<char> RayCaster::touchedFaces(const Scene& scene, double lift) const {
     std::vector<char> out(scene.polygons.size(), 0);
     for (size_t i = 0; i < scene.polygons.size(); ++i) {
         const ScenePolygon& p = scene.polygons[i];
-        Bounds near = polygonBox(p);
-        near.lo = near.lo - Vec3{lift, lift, lift};
-        near.hi = near.hi + Vec3{lift, lift, lift};
         const Vec3 origin = p.geom.v[0];
-        const size_t front = occluderOf(scene.polygons, i);
         bool touched = false;
-        occluders_.query([&](const Bounds& node) { return !touched && overlaps(node, near); },
-                         [&](int b) {
-                             size_t q = size_t(occluderPolygon_[size_t(b)]);
-                             if (touched || q == front || !overlaps(occluders_.box(b), near)) return;
-                             const ScenePolygon& sq = scene.polygons[q];
-                             for (int k = 0; k < sq.geom.n && !touched; ++k)
-                                 touched = dot(sq.geom.v[k] - origin, p.normal) > lift;
-                         });
+        forOccludersNear(scene, i, lift, touched, [&](size_t q) {
+            const ScenePolygon& sq = scene.polygons[q];
+            for (int k = 0; k < sq.geom.n && !touched; ++k) touched = dot(sq.geom.v[k] - origin, p.normal) > lift;
+        });
         out[i] = touched;
     }
     return out;
@@ -237,39 +243,31 @@ std::vector<char> RayCaster::footprintFaces(const Scene& scene, double lift, con
     for (size_t i = 0; i < scene.polygons.size(); ++i) {
         const ScenePolygon& p = scene.polygons[i];
         if (!out[i] || !isConvex(p)) continue;
-        Bounds near = polygonBox(p);
-        near.lo = near.lo - Vec3{lift, lift, lift};
-        near.hi = near.hi + Vec3{lift, lift, lift};
         const Vec3 origin = p.geom.v[0];
-        const size_t front = occluderOf(scene.polygons, i);
         bool found = false;
-        occluders_.query([&](const Bounds& node) { return !found && overlaps(node, near); },
-                         [&](int b) {
-                             size_t q = size_t(occluderPolygon_[size_t(b)]);
-                             if (found || q == front || !overlaps(occluders_.box(b), near)) return;
-                             // Where q meets p's plane: its corners in the plane and its edges' crossings.
-                             const Polygon& g = scene.polygons[q].geom;
-                             Vec3 meet[2 * Polygon::kMaxVerts];
-                             int m = 0;
-                             bool inFront = false;
-                             for (int k = 0; k < g.n; ++k) {
-                                 const Vec3& a = g.v[size_t(k)];
-                                 const Vec3& c = g.v[size_t((k + 1) % g.n)];
-                                 const double da = dot(a - origin, p.normal), dc = dot(c - origin, p.normal);
-                                 inFront |= da > lift;
-                                 if (std::fabs(da) <= lift) meet[m++] = a;
-                                 if ((da > lift && dc < -lift) || (da < -lift && dc > lift))
-                                     meet[m++] = a + (c - a) * (da / (da - dc));
-                             }
-                             if (!inFront || m < 2) return;
-                             // A plane meets a convex polygon along one segment: between its two farthest points.
-                             int x0 = 0, x1 = 1;
-                             double far = -1;
-                             for (int x = 0; x < m; ++x)
-                                 for (int y = x + 1; y < m; ++y)
-                                     if (length2(meet[x] - meet[y]) > far) far = length2(meet[x] - meet[y]), x0 = x, x1 = y;
-                             found = crossesInterior(p, meet[x0], meet[x1], lift);
-                         });
+        forOccludersNear(scene, i, lift, found, [&](size_t q) {
+            // Where q meets p's plane: its corners in the plane and its edges' crossings.
+            const Polygon& g = scene.polygons[q].geom;
+            Vec3 meet[2 * Polygon::kMaxVerts];
+            int m = 0;
+            bool inFront = false;
+            for (int k = 0; k < g.n; ++k) {
+                const Vec3& a = g.v[size_t(k)];
+                const Vec3& c = g.v[size_t((k + 1) % g.n)];
+                const double da = dot(a - origin, p.normal), dc = dot(c - origin, p.normal);
+                inFront |= da > lift;
+                if (std::fabs(da) <= lift) meet[m++] = a;
+                if ((da > lift && dc < -lift) || (da < -lift && dc > lift)) meet[m++] = a + (c - a) * (da / (da - dc));
+            }
+            if (!inFront || m < 2) return;
+            // A plane meets a convex polygon along one segment: between its two farthest points.
+            int x0 = 0, x1 = 1;
+            double far = -1;
+            for (int x = 0; x < m; ++x)
+                for (int y = x + 1; y < m; ++y)
+                    if (length2(meet[x] - meet[y]) > far) far = length2(meet[x] - meet[y]), x0 = x, x1 = y;
+            found = crossesInterior(p, meet[x0], meet[x1], lift);
+        });
         out[i] = found;
     }
     return out;

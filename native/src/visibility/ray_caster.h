@@ -73,6 +73,11 @@ public:
     std::vector<int> occludersInShaft(const Shaft& shaft) const;
 
 private:
+    // Calls visit(q) for every occluding polygon q other than polygon i's own whose box comes within `lift` of i's,
+    // until `done` turns true.
+    template <class Visit>
+    void forOccludersNear(const Scene& scene, size_t i, double lift, const bool& done, Visit&& visit) const;
+
     RTCDevice device_ = nullptr;
     RTCScene scene_ = nullptr;
     RTCScene lampScene_ = nullptr;      // without the polygons lamps' shadow rays pass; null when there are none
