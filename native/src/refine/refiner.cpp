@@ -81,12 +81,12 @@ double pointKernel(const Vec3& x, const Vec3& nx, const Vec3& y, const Vec3& ny)
     return cx * cy / (len2 * len2);
 }
 
-// The visible share of rays [a, b) weighted by their kernels (the share of the light that gets through), or of
-// the rays themselves where none has a weight; `seen` counts the rays through.
-// A ray whose weight is kLeftOut (it began inside a solid, Refiner::fromInsideSolid) does not count; with none
-// counted the share is unknown, and kLeftOut is returned.
+// The weight of a ray that began inside a solid (Refiner::fromInsideSolid): it does not count.
 constexpr double kLeftOut = -1;
 
+// The visible share of rays [a, b) weighted by their kernels (the share of the light that gets through), or of
+// the rays themselves where none has a weight; `seen` counts the rays through. With every ray left out the
+// share is unknown, and kLeftOut is returned.
 double weightedShare(const char* vis, const std::vector<double>& weight, int a, int b, int& seen) {
     double wSeen = 0, wAll = 0;
     int counted = 0;
