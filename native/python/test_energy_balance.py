@@ -63,18 +63,15 @@ def _office():
     return scalable_scene.make_scene(1000, seed=0)
 
 
-def absorbed_over_emitted(scene, settings, m=8):
-    """Mean over the colours of the absorbed over the emitted power, the irradiance averaged over an m x m grid
-    of points on each face."""
+def _face_grids(scene, m, faces=None):
+    """Per face (of `faces`, default all): an m x m grid of points lifted 0.1 mm off it, its normal repeated, and
+    its area."""
     v = np.asarray(scene["vertices"], np.float64)
-    rho = np.asarray(scene["reflectance"], np.float64)
-    emit = np.asarray(scene["emission"], np.float64)
-    lamp = (np.asarray(scene["flags"]) & _native.LIGHT_ONLY) != 0
-    pts, nrm, area = [], [], []
     s = (np.arange(m) + 0.5) / m
     s, t = (a.ravel()[:, None] for a in np.meshgrid(s, s))
-    for f in scene["polygons"]:
-        c = v[[i for i in f if i >= 0]]
+    pts, nrm, area = [], [], []
+    for k in range(len(scene["polygons"])) if faces is None else faces:
+        c = v[[i for i in scene["polygons"][k] if i >= 0]]
         if len(c) == 3:
             c = np.vstack([c, c[2:3]])
         n = np.cross(c[2] - c[0], c[3] - c[1])
@@ -83,7 +80,16 @@ def absorbed_over_emitted(scene, settings, m=8):
         q = (1 - s) * (1 - t) * c[0] + s * (1 - t) * c[1] + s * t * c[2] + (1 - s) * t * c[3]
         pts.append(q + 1e-4 * n)
         nrm.append(np.repeat(n[None], m * m, axis=0))
-    area = np.array(area)
+    return pts, nrm, np.array(area)
+
+
+def absorbed_over_emitted(scene, settings, m=8):
+    """Mean over the colours of the absorbed over the emitted power, the irradiance averaged over an m x m grid
+    of points on each face."""
+    rho = np.asarray(scene["reflectance"], np.float64)
+    emit = np.asarray(scene["emission"], np.float64)
+    lamp = (np.asarray(scene["flags"]) & _native.LIGHT_ONLY) != 0
+    pts, nrm, area = _face_grids(scene, m)
     sol = _native.solve(**scene, settings={"threads": 2, **settings})
     e = np.pi * np.asarray(sol.radiance(np.float32(np.vstack(pts)), np.float32(np.vstack(nrm)), irradiance=True))
     e = e[:, :3].reshape(len(area), m * m, 3).mean(axis=1)
@@ -173,7 +179,7 @@ def _floor_with_slabs(n=6, cover=0.5):
     for name, o, u, v in (("Ceiling", (-1.5, -1.5, 2), (0, 3, 0), (3, 0, 0)), ("Walls", (-1.5, -1.5, 0), (0, 3, 0), (0, 0, 2)),
                           ("Walls", (1.5, -1.5, 0), (0, 0, 2), (0, 3, 0)), ("Walls", (-1.5, -1.5, 0), (0, 0, 2), (3, 0, 0)),
                           ("Walls", (-1.5, 1.5, 0), (3, 0, 0), (0, 0, 2))):
-        o, u, v = (np.array(a, float) / 3 * (3 if k == 0 else 1) for k, a in enumerate((o, u, v)))
+        o, u, v = np.array(o, float), np.array(u, float) / 3, np.array(v, float) / 3
         for i in range(3):
             for j in range(3):
                 a = o + i * u + j * v
@@ -184,22 +190,11 @@ def _floor_with_slabs(n=6, cover=0.5):
 
 
 def _ceiling_radiance(scene, settings):
-    v = np.asarray(scene["vertices"], np.float64)
-    names = list(scene["object_names"])
-    s = (np.arange(4) + 0.5) / 4
-    pts, nrm = [], []
-    for f, o in zip(scene["polygons"], scene["object_index"]):
-        if names[o] != "Ceiling":
-            continue
-        c = v[[i for i in f if i >= 0]]
-        n = np.cross(c[2] - c[0], c[3] - c[1])
-        n /= np.linalg.norm(n)
-        for a in s:
-            for t in s:
-                pts.append((1 - a) * (1 - t) * c[0] + a * (1 - t) * c[1] + a * t * c[2] + (1 - a) * t * c[3] + 1e-4 * n)
-                nrm.append(n)
+    ceiling = np.nonzero(np.asarray(scene["object_index"]) == list(scene["object_names"]).index("Ceiling"))[0]
+    pts, nrm, _ = _face_grids(scene, 4, ceiling)
     sol = _native.solve(**scene, settings={"threads": 2, **settings})
-    return float(np.asarray(sol.radiance(np.float32(pts), np.float32(nrm)))[:, :3].mean()), sol.report["cluster_links"]
+    radiance = np.asarray(sol.radiance(np.float32(np.vstack(pts)), np.float32(np.vstack(nrm))))
+    return float(radiance[:, :3].mean()), sol.report["cluster_links"]
 
 
 def test_light_from_under_a_slab_is_not_cut_twice_by_cluster_links():

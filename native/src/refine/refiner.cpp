@@ -256,6 +256,8 @@ Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counter
     lift_ = 1e-5 * sc.diagonal;
     touched_ = rays.touchedFaces(sc, lift_);
     footprint_ = rays.footprintFaces(sc, lift_, touched_);
+    // An emitter's part under something gives no light, so its rays count (as in estimateVisibility).
+    for (size_t p = 0; p < sc.polygons.size(); ++p) footprint_[p] &= maxComponent(sc.polygons[p].emission) <= 0;
     if (!h.clusters().empty()) {
         const ClusterTree& ct = h.clusters();
         clusterEmits_.assign(ct.size(), 0);
@@ -915,7 +917,7 @@ double Refiner::drawnWeight(const Vec3& x, const Vec3& nx, const Vec3& y, int yF
 }
 
 bool Refiner::fromInsideSolid(int face, const Vec3& sourcePoint, const Vec3& receiverPoint) const {
-    if (!footprint_[size_t(face)] || !(maxComponent(h_.scene().polygons[size_t(face)].emission) <= 0)) return false;
+    if (!footprint_[size_t(face)]) return false;
     const Vec3 d = receiverPoint - sourcePoint;
     const double len = length(d);
     return len > 0 && rays_.metFromBehind(h_.scene(), sourcePoint, d * (1.0 / len), len);

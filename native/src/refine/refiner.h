@@ -143,7 +143,7 @@ private:
     std::vector<double> minArea_;  // per scene polygon: no element of it is split at or below this area
     double lift_;  // ray end points are lifted off their surfaces by this much
     std::vector<char> touched_;    // per scene polygon: RayCaster::touchedFaces
-    std::vector<char> footprint_;  // per scene polygon: RayCaster::footprintFaces
+    std::vector<char> footprint_;  // per scene polygon: RayCaster::footprintFaces, emitters left out
     int strata_;   // visibility rays = strata_^2
     bool firstPass_ = false;
     Counters& counters_;

@@ -351,14 +351,4 @@ void RayCaster::visiblePairs(const Vec3* from, const Vec3* to, int n, char* visi
                 [&](int k, bool v) { visible[k] = v ? 1 : 0; });
 }
 
-double RayCaster::unoccludedFraction(const Vec3* from, const Vec3* to, int n, bool diffuseRay) const {
-    if (n <= 0) return 1.0;
-    const bool diffuse = diffuseRay && diffuseScene_;
-    if ((diffuse ? numDiffuseTriangles_ : numTriangles_) == 0) return 1.0;
-    int count = 0;
-    castPackets(diffuse ? diffuseScene_ : scene_, n, [&](int k) { return std::make_pair(from[k], to[k]); },
-                [&](int, bool v) { count += v; });
-    return double(count) / n;
-}
-
 }  // namespace penumbra

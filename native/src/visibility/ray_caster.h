@@ -23,11 +23,9 @@ public:
     RayCaster& operator=(const RayCaster&) = delete;
 
     // Every query is thread-safe.
-    // Fraction of the n segments (from[i], to[i]) that are unblocked; uses 16-wide packets because a
+    // visible[i] = 1 when nothing blocks the open segment (from[i], to[i]), else 0; 16-wide packets because a
     // link's samples are coherent (measured 2.4x faster than single rays here).
     // `diffuseRay`: a ray carrying reflected light, which polygons hidden from diffuse rays let through.
-    double unoccludedFraction(const Vec3* from, const Vec3* to, int n, bool diffuseRay = false) const;
-    // visible[i] = 1 when nothing blocks the open segment (from[i], to[i]), else 0; 16-wide packets.
     void visiblePairs(const Vec3* from, const Vec3* to, int n, char* visible, bool diffuseRay = false) const;
     // visible[i] = 1 when nothing blocks the open segment (from, to[i]), else 0; 16-wide packets.
     // `lampRay`: a point, spot or sun lamp's shadow ray, which polygons without blocksLamps let through.
@@ -46,8 +44,8 @@ public:
 
     // Per polygon: its front lies inside a solid (a desk leg's top flush under the desk, a box's bottom on
     // the floor): the first surface that a ray off it meets, from its centre, the points halfway to its corners
-    // and points near its corners, is always met from behind. Such a face sees nothing; cluster links, which cannot see shadows inside
-    // a cluster, must not light it.
+    // and points near its corners, is always met from behind. Such a face sees nothing; cluster links, which
+    // cannot see shadows inside a cluster, must not light it.
     std::vector<char> buriedFaces(const Scene& scene, double lift) const;
     // Per polygon: some other occluding polygon comes within `lift` of its box and reaches in front of it (a
     // box or a chair leg standing on a floor tile, a wall meeting it at a corner). Only such a polygon can
