@@ -265,7 +265,7 @@ def run_scene(penumbra, name, args, penumbra_settings=None):
             for n, v in s["receivers"].items()))
     penumbra.clear(scene)
     jobs = {n: (UV, res, res) for n in receivers}
-    samples_list = [int(x) for x in args.cycles_samples.split(",")]
+    samples_list = [int(x) for x in args.cycles_samples.split(",") if x]  # "" runs no Cycles bake
     for spp in (samples_list[:2] if args.quick else samples_list):
         cpu0 = time.process_time()
         maps, sec = cycles_lightmaps(scene, jobs, spp, seed=7 + spp, bounces=BOUNCES)
