@@ -90,7 +90,7 @@ public:
 
     // Renumbers all elements in depth-first order from the roots so that indices do not depend on
     // which thread created what. Returns old index -> new index.
-    std::vector<int> canonicalize();
+    std::vector<int> canonicalize(int threads = 1);
     size_t countLeaves() const;
 
 private:

@@ -1256,8 +1256,8 @@ void Refiner::refineElements(int ri, int si, std::vector<Link>& out) {
 
 std::vector<Link> Refiner::linkAll(Progress* progress) {
     std::vector<Link> links = h_.clusters().empty() ? linkFacePairs(progress) : linkFromRoot(progress);
-    faceVis_.finish();
-    srcFaceVis_.finish();
+    faceVis_.finish(resolveThreads(settings_.threads));
+    srcFaceVis_.finish(resolveThreads(settings_.threads));
     return links;
 }
 
@@ -1427,8 +1427,8 @@ void Refiner::rerefine(std::vector<Link>& links, Progress* progress, bool& chang
     links.resize(kept);
     std::vector<uint8_t>().swap(replaced);
     appendParts(links, out);
-    faceVis_.finish();
-    srcFaceVis_.finish();
+    faceVis_.finish(resolveThreads(settings_.threads));
+    srcFaceVis_.finish(resolveThreads(settings_.threads));
 }
 
 }  // namespace penumbra

@@ -1,5 +1,7 @@
 #include "solve/link.h"
 
+#include "util/parallel.h"
+
 #include <algorithm>
 #include <limits>
 #include <stdexcept>
@@ -16,10 +18,11 @@ void ClusterFaceVisibility::record(uint64_t receiverKey, uint64_t sourceKey, con
     sorted_ = false;
 }
 
-void ClusterFaceVisibility::finish() {
+void ClusterFaceVisibility::finish(int threads) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (sorted_) return;
-    std::sort(index_.begin(), index_.end(), [](const Entry& a, const Entry& b) {
+    // The offset makes every entry's key distinct, so the order is the same on any number of threads.
+    parallelSort(index_.begin(), index_.end(), threads, [](const Entry& a, const Entry& b) {
         return std::tie(a.receiver, a.source, a.offset) < std::tie(b.receiver, b.source, b.offset);
     });
     // Keep the last recording of each pair. Its shares move down over the dropped ones in place, in the
@@ -33,7 +36,7 @@ void ClusterFaceVisibility::finish() {
         else
             byOffset.push_back(uint32_t(i));
     }
-    std::sort(byOffset.begin(), byOffset.end(),
+    parallelSort(byOffset.begin(), byOffset.end(), threads,
               [&](uint32_t a, uint32_t b) { return index_[a].offset < index_[b].offset; });
     size_t w = 0;
     for (uint32_t i : byOffset) {

@@ -41,8 +41,9 @@ class ClusterFaceVisibility {
 public:
     // Thread-safe. A pair recorded again (a later refinement pass) replaces its shares at the next finish().
     void record(uint64_t receiverKey, uint64_t sourceKey, const float* share, size_t n);
-    // Sorts the index and drops replaced shares; call before find() once a refinement pass is done.
-    void finish();
+    // Sorts the index (on `threads` threads) and drops replaced shares; call before find() once a refinement
+    // pass is done.
+    void finish(int threads = 1);
     // The pair's shares (one per face of the receiving cluster, or of the source cluster in the second table), or null.
     const float* find(uint64_t receiverKey, uint64_t sourceKey) const;
     bool empty() const { return index_.empty(); }

@@ -24,22 +24,30 @@ void Solver::prepareClusters(const std::vector<Link>& links) {
             for (int a = ct[int(c)].parent; a >= 0; a = ct[a].parent) ++clusterDepth_[c];
     }
     // Links into elements from near cluster sources taken face by face: each face's weight (form factor times
-    // visible share), found once per solve rather than per sweep.
+    // visible share), found once per solve rather than per sweep. Each link's lookup is a binary search of
+    // millions of keys that fills its own slot, so both tables are filled on all threads (the 100k office's
+    // five solves and gathers spent 0.88 s in this set-up on one thread, 0.48 s on two).
+    const int threads = resolveThreads(settings_.threads);
     linkSourceWeights_.assign(links.size() - intoClusters, nullptr);
     if (srcFaceVis_ && !srcFaceVis_->empty())
-        for (size_t i = intoClusters; i < links.size(); ++i)
-            if (sourceShared(links[i]))
-                linkSourceWeights_[i - intoClusters] =
-                    srcFaceVis_->find(nodeKey(h_, links[i].receiver), nodeKey(h_, links[i].source));
+        parallelFor(links.size() - intoClusters, threads, 4096, [&](size_t b, size_t e, int) {
+            for (size_t i = intoClusters + b; i < intoClusters + e; ++i)
+                if (sourceShared(links[i]))
+                    linkSourceWeights_[i - intoClusters] =
+                        srcFaceVis_->find(nodeKey(h_, links[i].receiver), nodeKey(h_, links[i].source));
+        });
     intoClusters_ = intoClusters;
     for (size_t g = 0; g + 1 < groupStart_.size(); ++g) {
         int r = links[groupStart_[g]].receiver;
         if (!isClusterNode(r)) break;
         clusterLinks_[size_t(clusterIndex(r))] = {groupStart_[g], groupStart_[g + 1]};
-        if (faceVis_ && !faceVis_->empty())
-            for (size_t i = groupStart_[g]; i < groupStart_[g + 1]; ++i)
-                if (links[i].partial()) linkFaceV_[i] = faceVis_->find(nodeKey(h_, r), nodeKey(h_, links[i].source));
     }
+    if (faceVis_ && !faceVis_->empty())
+        parallelFor(intoClusters, threads, 4096, [&](size_t b, size_t e, int) {
+            for (size_t i = b; i < e; ++i)
+                if (links[i].partial())
+                    linkFaceV_[i] = faceVis_->find(nodeKey(h_, links[i].receiver), nodeKey(h_, links[i].source));
+        });
 }
 
 void Solver::gather(const std::vector<Link>& links) {

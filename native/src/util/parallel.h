@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <atomic>
 #include <exception>
+#include <iterator>
 #include <thread>
 #include <vector>
 
@@ -67,6 +68,37 @@ void parallelForDynamic(size_t n, int threads, size_t grain, F&& body) {
             throw;
         }
     });
+}
+
+// std::sort of [first, last) on up to `threads` threads: runs of about equal length sorted each on its own,
+// then merged pairwise. The result is a sorted sequence, so where `less` orders any two distinct elements
+// (as the links' (receiver, source) keys, which are never repeated) it is std::sort's to the bit. Below
+// kSerialSort elements, or on one thread, it is std::sort.
+template <class It, class Less>
+void parallelSort(It first, It last, int threads, Less less) {
+    constexpr ptrdiff_t kSerialSort = 1 << 15;
+    const ptrdiff_t n = std::distance(first, last);
+    threads = std::max(1, threads);
+    if (threads == 1 || n < kSerialSort) {
+        std::sort(first, last, less);
+        return;
+    }
+    int runs = 1;
+    while (runs < threads && n / (2 * runs) >= kSerialSort / 2) runs *= 2;  // a power of two, for pairwise merges
+    std::vector<It> bound(size_t(runs) + 1);
+    for (int k = 0; k <= runs; ++k) bound[size_t(k)] = first + n * k / runs;
+    parallelForDynamic(size_t(runs), threads, 1, [&](size_t b, size_t e, int) {
+        for (size_t k = b; k < e; ++k) std::sort(bound[k], bound[k + 1], less);
+    });
+    for (int width = 1; width < runs; width *= 2) {
+        const size_t merges = size_t(runs / (2 * width));
+        parallelForDynamic(merges, threads, 1, [&](size_t b, size_t e, int) {
+            for (size_t m = b; m < e; ++m) {
+                size_t lo = m * 2 * size_t(width);
+                std::inplace_merge(bound[lo], bound[lo + size_t(width)], bound[lo + 2 * size_t(width)], less);
+            }
+        });
+    }
 }
 
 }  // namespace penumbra
