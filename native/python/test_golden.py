@@ -87,15 +87,18 @@ SETTINGS = {"threads": 3, "t_max": 1e6}
 # (refiner.cpp, fromInsideSolid): links 1028174 -> 1030597, rays 44604519 -> 44674412; the radiance 0.055 % RMS
 # apart, its mean +0.004 %. Then a face whose every ray began inside a solid takes the share of the link's other rays
 # instead of none: counts equal, the residual in its fifth digit.
+# Stop 48: a receiver that a source's plane cuts (a floor element under a desk leg) takes its mean form factor over its
+# part in front (refiner.cpp, meanPoints): links 1030597 -> 1032739, rays 44674412 -> 44609523; the radiance 0.31 %
+# RMS apart, its mean +0.09 % (the lightmap 0.42 %, +0.08 %).
 EXPECTED_COUNTS = {
-    "polygons": 999, "elements": 38659, "leaves": 28904, "links": 1030597, "rays": 44674412, "rays_batched": 24430208,
-    "rays_cluster": 1073340, "shafts_clear": 14441, "shared_cluster_links": 11956, "source_shared_links": 5569,
-    "clusters": 291, "cluster_links": 27872, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 274, "convolution_texels": 0,
+    "polygons": 999, "elements": 38659, "leaves": 28904, "links": 1032739, "rays": 44609523, "rays_batched": 24379776,
+    "rays_cluster": 1073539, "shafts_clear": 14494, "shared_cluster_links": 11956, "source_shared_links": 5567,
+    "clusters": 291, "cluster_links": 27858, "emitter_links": 81362, "convolution_links": 0, "convolution_tried": 274, "convolution_texels": 0,
     "convolution_max_error": 0.0, "min_edge": 0.13152946437965907,
     "convolution_refused": {"intruder": 151, "invalid": 0, "no_blocker": 4, "too_coarse": 119, "too_slow": 0,
                             "self_shadow": 0},
     "gather_emitters": 4, "iterations": 12, "refine_passes": 3, "lights": 0, "light_rays": 0, "sun_textures": 0, "sun_refused": 0,
-    "residual": 6.741326588409033e-05, "converged": True, "warnings": 0}
+    "residual": 7.046488426058345e-05, "converged": True, "warnings": 0}
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "data", "golden_office.npz")
 RTOL = 1e-5
 

@@ -203,6 +203,38 @@ double frontFormFactor(const Vec3& p, const Vec3& nr, const Element& s, const Ve
     return dot(p - s.v[0], ns) > 0 ? pointToPolygonFormFactor(p, nr, sp) : 0.0;
 }
 
+// Most points a receiver's mean form factor takes (meanPoints): three per triangle of a quad clipped by a plane.
+constexpr int kMaxMeanPoints = 9;
+
+// The quadrature points of r's mean form factor from s, and their weights (summing to the share of r's area in front
+// of s's plane): samplePoints where r lies wholly in front of s's plane (lift: how far behind a corner may be and
+// still count as on it); where s's plane cuts r (a leg or a pedestal standing on a floor element), the part in front
+// of it, as a fan of triangles with three points each. The 2 x 2 Gauss points over the whole element read the mean
+// form factor of a face standing across a square receiver, as wide as it and as tall, 17 % low on average and 67 %
+// RMS over twelve positions (a numerical check against a rule graded toward the foot): whether a point lies behind
+// the face depends on where it stands, not on how much of the receiver does. Over the part in front: 2 % high and
+// 2 % RMS; at the position of refiner_test.cpp's test, 52 % low before and 0.7 % high now.
+int meanPoints(const Element& r, const Element& s, const Vec3& ns, double lift, Vec3* pts, double* w) {
+    bool cut = false;
+    for (int k = 0; k < r.n; ++k) cut |= dot(r.v[k] - s.v[0], ns) < -lift;
+    if (!cut) {
+        int np = samplePoints(r, pts);
+        for (int k = 0; k < np; ++k) w[k] = 1.0 / np;
+        return np;
+    }
+    const Polygon front = clipToHalfSpace(r.polygonShape(), s.v[0], ns);
+    int np = 0;
+    for (int t = 1; t + 1 < front.n && np + 3 <= kMaxMeanPoints; ++t) {
+        const Vec3 &a = front.v[0], &b = front.v[size_t(t)], &c = front.v[size_t(t + 1)];
+        const double share = 0.5 * length(cross(b - a, c - a)) / r.area / 3;
+        // The degree-2 three-point rule on a triangle.
+        pts[np] = a * (2.0 / 3) + b * (1.0 / 6) + c * (1.0 / 6), w[np++] = share;
+        pts[np] = a * (1.0 / 6) + b * (2.0 / 3) + c * (1.0 / 6), w[np++] = share;
+        pts[np] = a * (1.0 / 6) + b * (1.0 / 6) + c * (2.0 / 3), w[np++] = share;
+    }
+    return np;
+}
+
 }  // namespace
 
 Refiner::Refiner(Hierarchy& h, const RayCaster& rays, const Settings& s, Counters& counters)
@@ -435,8 +467,9 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
     Polygon sp = s.polygonShape();
     // The mean comes from the quadrature points; the spread also looks at the centre and the corners,
     // where the kernel varies most (a corner on the source's edge sees half a hemisphere).
-    Vec3 pts[11];
-    int np = samplePoints(r, pts);
+    Vec3 pts[kMaxMeanPoints + 7];
+    double w[kMaxMeanPoints];
+    int np = meanPoints(r, s, ns, lift_, pts, w);
     int total = np;
     pts[total++] = r.center;
     for (int k = 0; k < r.n; ++k) pts[total++] = r.v[k];
@@ -455,14 +488,13 @@ bool Refiner::estimateUnoccluded(int ri, int si, Link& l) {
         }
         pts[total++] = best;
     }
-    double sum = 0, fmin = HUGE_VAL, fmax = 0;
+    double mean = 0, fmin = HUGE_VAL, fmax = 0;
     for (int k = 0; k < total; ++k) {
         double f = frontFormFactor(pts[k], nr, s, ns, sp);
-        if (k < np) sum += f;
+        if (k < np) mean += w[k] * f;
         fmin = std::min(fmin, f);
         fmax = std::max(fmax, f);
     }
-    double mean = sum / np;
     mean *= partsWeight(ri, si, pts, np);
     l.receiver = ri;
     l.source = si;
@@ -531,11 +563,12 @@ double Refiner::weightedMean(int ri, int si) const {
     const Vec3& nr = h_.scene().polygons[r.polygon].normal;
     const Vec3& ns = h_.scene().polygons[s.polygon].normal;
     Polygon sp = s.polygonShape();
-    Vec3 pts[11];
-    int np = samplePoints(r, pts);
-    double sum = 0;
-    for (int k = 0; k < np; ++k) sum += frontFormFactor(pts[k], nr, s, ns, sp);
-    return sum / np * partsWeight(ri, si, pts, np);
+    Vec3 pts[kMaxMeanPoints];
+    double w[kMaxMeanPoints];
+    int np = meanPoints(r, s, ns, lift_, pts, w);
+    double mean = 0;
+    for (int k = 0; k < np; ++k) mean += w[k] * frontFormFactor(pts[k], nr, s, ns, sp);
+    return mean * partsWeight(ri, si, pts, np);
 }
 
 void Refiner::estimateVisibility(int ri, int si, Link& l, int batches, double transfer) {

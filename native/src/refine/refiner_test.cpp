@@ -8,6 +8,7 @@
 #include <cmath>
 #include <string>
 
+#include "geometry/form_factor.h"
 #include "testing/scenes.h"
 
 namespace penumbra {
@@ -231,6 +232,37 @@ TEST(Refiner, ASourceWhoseLightLiesBehindTheReceiverIsSeenByItsPartInFront) {
         EXPECT_EQ(l.V, 1.0f) << "source element " << l.source;
     }
     EXPECT_GT(found, 0u) << "the floor's light to the card was dropped";
+}
+
+TEST(Refiner, AFaceStandingAcrossAReceiverLightsItsPartInFrontByItsMeanFormFactor) {
+    // A 1 x 1 floor that cannot split and a 1 x 1 lamp standing across it at y = 0.3, facing +y: the floor behind
+    // the lamp (y < 0.3) gets nothing, the floor in front a form factor that peaks at the lamp's foot. The link's
+    // mean form factor must be that mean over the whole floor. Its four Gauss points over the whole floor read it
+    // 52 % low (two of them behind the lamp, the other two far from its foot).
+    TestScene t;
+    t.names = {"Floor", "Lamp"};
+    t.quad({0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5, 0.5, 0.5}, {}, 0, 0);
+    const double y0 = 0.3;
+    t.quad({0, y0, 0}, {0, y0, 1}, {1, y0, 1}, {1, y0, 0}, {}, {10, 10, 10}, kLightOnly, 1);
+    Settings s = standardOnly(0.5);
+    s.minSize = 0.9;  // the floor cannot split
+    Refined r(t, s);
+    ASSERT_EQ(r.links.size(), 1u);
+    const Link& l = r.links[0];
+    ASSERT_EQ((*r.h)[size_t(l.source)].polygon, 1);
+    // The reference: the point form factor over the floor in front of the lamp, its rows graded toward the foot
+    // (y = y0 + (1 - y0) u^2), midpoints of a 400 x 400 grid in (x, u).
+    Polygon lamp;
+    for (const Vec3& v : {Vec3{0, y0, 0}, Vec3{0, y0, 1}, Vec3{1, y0, 1}, Vec3{1, y0, 0}}) lamp.push(v);
+    const int m = 400;
+    double mean = 0;
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+            double x = (i + 0.5) / m, u = (j + 0.5) / m;
+            mean += pointToPolygonFormFactor({x, y0 + (1 - y0) * u * u, 0}, {0, 0, 1}, lamp) * 2 * u * (1 - y0);
+        }
+    mean /= double(m) * m;
+    EXPECT_NEAR(l.Fmean / mean, 1.0, 0.03) << "link " << l.Fmean << " reference " << mean;
 }
 
 }  // namespace
