@@ -188,6 +188,11 @@ SETTINGS = (
             "Shadow rays per point, spot or sun lamp with a size (radius, angle) and for the world, per texel: "
             "the steps of their soft shadows (a lamp of radius 0 takes one ray, a hard shadow)",
             group="refinement"),
+    Setting("texel_samples", int, 1, ("[", 1, 16, "]"), "Texel Samples",
+            "1: every lightmap texel takes the light at its centre. More: texels on a shadow's edge or a contact "
+            "take the mean over their area from this many points per side, as Cycles' bake does, so shadows "
+            "narrower than a texel come out as their share of it. Worth it with point, spot and sun lamps or "
+            "Gather Rays; with the default shadows, read from the patches, it changes little", group="refinement"),
     Setting("seed", int, 0, ("[", 0, 2**31 - 1, "]"), "Seed",
             "Which sample pattern the rays use. Another seed gives a bake that differs only by sampling noise: "
             "bake two to see how much of a difference is noise", group="refinement"),

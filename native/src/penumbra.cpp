@@ -88,6 +88,7 @@ std::unique_ptr<Solution> solve(const SceneInput& in, const Settings& settings, 
     Report& rep = sol->report_;
     Counters counters;  // this solve's; copied into rep.counts at the end
     sol->threads_ = resolveThreads(settings.threads);
+    sol->texelSamples_ = settings.texelSamples;
     sol->maxTexels_ = settings.maxTexels;
     Stopwatch clock;
 
@@ -311,12 +312,18 @@ void Solution::checkTexelBudget(const LightmapInput& in) const {
 
 std::vector<float> Solution::bakeLightmap(const LightmapInput& in) const {
     checkTexelBudget(in);
-    return penumbra::bakeLightmap(field_, in, scene_->offset, threads_);
+    LightmapInput with = in;
+    with.footprint = texelSamples_;
+    return penumbra::bakeLightmap(field_, with, scene_->offset, threads_);
 }
 
 void Solution::bakeLightmaps(const LightmapInput* ins, size_t count, float* out) const {
-    for (size_t k = 0; k < count; ++k) checkTexelBudget(ins[k]);
-    penumbra::bakeLightmaps(field_, ins, count, scene_->offset, threads_, out);
+    std::vector<LightmapInput> with(ins, ins + count);
+    for (LightmapInput& in : with) {
+        checkTexelBudget(in);
+        in.footprint = texelSamples_;
+    }
+    penumbra::bakeLightmaps(field_, with.data(), count, scene_->offset, threads_, out);
 }
 
 }  // namespace penumbra

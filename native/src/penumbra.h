@@ -65,6 +65,7 @@ private:
     Report report_;
     int threads_ = 1;
     size_t maxTexels_ = 0;
+    int texelSamples_ = 1;  // Settings::texelSamples: points per side of a lightmap texel's footprint
 };
 
 // Throws (util/error.h) InputError for bad input (message names the object), BudgetExceeded (an InputError) when

@@ -127,9 +127,87 @@ std::vector<Sample> rasterize(const LightmapInput& in) {
     return samples;
 }
 
-// Rows [y0, y1) of one lightmap: the radiance of every covered texel, alpha 1 everywhere.
+// The footprint's side in texels, and the contrast with a neighbour above which a texel takes it (lightmap.h).
+// Half a texel is what Blender 3.4's bake spreads a texel's samples over: an emission step swept across a texel
+// of a plane read 1.00 with the step 0.24 texel before the centre, 0.00 with it 0.24 texel after, and
+// linearly between (1024 samples).
+constexpr double kFootprintSide = 0.5;
+constexpr double kFootprintContrast = 0.02;
+
+// The mean radiance over the footprint of texel (x, y) on triangle `tri` (world corners a, b, c, normal n), or
+// {-1, -1, -1} where its centre is off the triangle (a texel reached only by the triangle's edge keeps its
+// one point). A footprint point off the triangle is taken at its mirror image through the centre, or left out
+// if that is off too: the points stay centred on the texel, so a texel on a quad's diagonal or an island's
+// edge does not read its light from a place shifted into its triangle.
+Rgb footprintMean(const RadianceField& field, const LightmapInput& in, const RadianceField::Region& region, int tri,
+                  int x, int y, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& n) {
+    const Rgb none{-1, -1, -1};
+    double uv[3][2];
+    for (int k = 0; k < 3; ++k) {
+        uv[k][0] = double(in.uvs[size_t(tri) * 6 + size_t(k) * 2]) * in.width;
+        uv[k][1] = double(in.uvs[size_t(tri) * 6 + size_t(k) * 2 + 1]) * in.height;
+    }
+    const double e1x = uv[1][0] - uv[0][0], e1y = uv[1][1] - uv[0][1];
+    const double e2x = uv[2][0] - uv[0][0], e2y = uv[2][1] - uv[0][1];
+    const double den = e1x * e2y - e2x * e1y;
+    if (!(std::fabs(den) > 1e-12)) return none;
+    auto bary = [&](double px, double py, double& u, double& v, double& w) {
+        const double qx = px - uv[0][0], qy = py - uv[0][1];
+        v = (qx * e2y - e2x * qy) / den;
+        w = (e1x * qy - qx * e1y) / den;
+        u = 1 - v - w;
+        return u >= 0 && v >= 0 && w >= 0;
+    };
+    const double cx = x + 0.5, cy = y + 0.5;
+    double u, v, w;
+    if (!bary(cx, cy, u, v, w)) return none;
+    const int k = in.footprint;
+    Rgb sum{0, 0, 0};
+    int taken = 0;
+    for (int j = 0; j < k; ++j)
+        for (int i = 0; i < k; ++i) {
+            const double ox = kFootprintSide * ((i + 0.5) / k - 0.5), oy = kFootprintSide * ((j + 0.5) / k - 0.5);
+            if (!bary(cx + ox, cy + oy, u, v, w) && !bary(cx - ox, cy - oy, u, v, w)) continue;
+            sum += field.radiance(a * u + b * v + c * w, n, in.irradiance, &region);
+            ++taken;
+        }
+    return taken > 0 ? sum * (1.0 / taken) : none;
+}
+
+// Which covered texels take their footprint's mean: those where the light bends within a texel (a shadow's
+// edge, a contact, a leg's foot). The footprint is symmetric about the centre, so where the light is linear
+// across it its mean is the centre's value; what parts them is the second difference, here taken along each
+// axis over the covered neighbours (largest channel, against the largest value of the three), marked above
+// kFootprintContrast. Judged on the centres' values alone, so the choice does not depend on the order in
+// which texels are refined.
+std::vector<uint8_t> footprintTexels(const float* rgba, const uint8_t* covered, int W, int H) {
+    std::vector<uint8_t> mark(size_t(W) * size_t(H), 0);
+    auto bends = [&](size_t a, size_t i, size_t b) {
+        double d = 0, m = 0;
+        for (int ch = 0; ch < 3; ++ch) {
+            const double l = rgba[a * 4 + ch], c = rgba[i * 4 + ch], r = rgba[b * 4 + ch];
+            d = std::max(d, std::fabs(l + r - 2 * c));
+            m = std::max({m, l, c, r});
+        }
+        return d > kFootprintContrast * m;
+    };
+    for (int y = 0; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+            size_t i = size_t(y) * W + x;
+            if (!covered[i]) continue;
+            const bool hx = x > 0 && x + 1 < W && covered[i - 1] && covered[i + 1];
+            const bool hy = y > 0 && y + 1 < H && covered[i - W] && covered[i + W];
+            // A texel with a covered pair along neither axis is an island of its own or a sliver's edge: its
+            // bend cannot be judged, and its one point stands for a face that may hold a whole shadow.
+            mark[i] = (hx && bends(i - 1, i, i + 1)) || (hy && bends(i - W, i, i + W)) || (!hx && !hy);
+        }
+    return mark;
+}
+
+// Rows [y0, y1) of one lightmap: the radiance of every covered texel, alpha 1 everywhere; with `footprints`,
+// only the marked texels again, each as its footprint's mean.
 void shadeRows(const RadianceField& field, const LightmapInput& in, const Vec3& offset, const Sample* samples,
-               size_t y0, size_t y1, float* rgba, uint8_t* covered) {
+               size_t y0, size_t y1, float* rgba, uint8_t* covered, const uint8_t* footprints = nullptr) {
     const int W = in.width;
     auto corners = [&](int tri, Vec3& a, Vec3& b, Vec3& c) {
         const float* P = in.positions + size_t(tri) * 9;
@@ -143,7 +221,7 @@ void shadeRows(const RadianceField& field, const LightmapInput& in, const Vec3& 
     // covers (a point outside the box walks the trees, with the same result).
     Bounds box;
     for (size_t i = y0 * W; i < y1 * W; ++i)
-        if (samples[i].tri >= 0) {
+        if (samples[i].tri >= 0 && (!footprints || footprints[i])) {
             Vec3 a, b, c;
             corners(samples[i].tri, a, b, c);
             box.extend(a);
@@ -161,6 +239,17 @@ void shadeRows(const RadianceField& field, const LightmapInput& in, const Vec3& 
         for (int x = 0; x < W; ++x) {
             size_t i = y * W + x;
             const Sample& s = samples[i];
+            if (footprints) {
+                if (!footprints[i] || s.tri < 0) continue;
+                Vec3 a, b, c;
+                corners(s.tri, a, b, c);
+                Rgb r = footprintMean(field, in, region, s.tri, x, int(y), a, b, c, normalize(cross(b - a, c - a)));
+                if (r.x < 0) continue;
+                rgba[i * 4] = float(r.x);
+                rgba[i * 4 + 1] = float(r.y);
+                rgba[i * 4 + 2] = float(r.z);
+                continue;
+            }
             rgba[i * 4 + 3] = 1.0f;
             if (s.tri < 0) {
                 rgba[i * 4] = rgba[i * 4 + 1] = rgba[i * 4 + 2] = 0.0f;
@@ -234,8 +323,20 @@ void bakeLightmaps(const RadianceField& field, const LightmapInput* ins, size_t 
         shadeRows(field, ins[k], offset, samples[k].data(), y, std::min(y + rows, size_t(ins[k].height)),
                   out + start[k] * 4, covered.data() + start[k]);
     });
+    // 3. Texels whose light changes within them: their footprints' means, judged on step 2's values.
+    std::vector<std::vector<uint8_t>> marks(count);
+    dynamicFor(count, threads, [&](size_t k) {
+        if (ins[k].footprint > 1)
+            marks[k] = footprintTexels(out + start[k] * 4, covered.data() + start[k], ins[k].width, ins[k].height);
+    });
+    dynamicFor(blocks.size(), threads, [&](size_t b) {
+        auto [k, y] = blocks[b];
+        if (marks[k].empty()) return;
+        shadeRows(field, ins[k], offset, samples[k].data(), y, std::min(y + rows, size_t(ins[k].height)),
+                  out + start[k] * 4, covered.data() + start[k], marks[k].data());
+    });
     samples.clear();
-    // 3. Texels outside every island filled from their neighbours, one lightmap per task.
+    // 4. Texels outside every island filled from their neighbours, one lightmap per task.
     dynamicFor(count, threads, [&](size_t k) {
         const LightmapInput& in = ins[k];
         dilate(out + start[k] * 4, covered.data() + start[k], in.width, in.height, in.margin);

@@ -1,6 +1,12 @@
 // Lightmap texels from UV triangles. A texel takes the radiance at the point of its triangle
 // nearest to its centre: at the centre itself when covered, else at the closest point of a triangle
-// that still overlaps the texel, so island borders are never sampled off the surface. Texels outside
+// that still overlaps the texel, so island borders are never sampled off the surface.
+// With LightmapInput::footprint > 1, a texel where the light bends (its second difference with its
+// neighbours over kFootprintContrast: a shadow's edge, a contact, a leg's foot inside it), or one without
+// neighbours to judge by, takes instead the mean over its footprint as Blender's bake samples it: a square
+// half a texel wide about its centre (Blender 3.4 jitters a texel's samples over that square, measured with
+// an emission edge swept across a texel, stop 49), on the texel's own triangle (as Cycles keeps them),
+// from footprint x footprint points, a point off the triangle taken at its mirror image through the centre. Texels outside
 // every island are filled by dilation so that bilinear lookups never fetch empty texels.
 #pragma once
 #include <vector>
@@ -15,6 +21,9 @@ struct LightmapInput {
     size_t triangles = 0;
     int width = 0, height = 0, margin = 0;
     bool irradiance = false;  // E/pi without the surface's albedo (RadianceField::radiance)
+    // Points per side of a texel's footprint where its light bends within it (above); 1: the texel's own
+    // point only (Settings::texelSamples).
+    int footprint = 1;
 };
 
 // Returns height x width x 4 floats, rows bottom-to-top (v = 0 first), alpha 1 everywhere.

@@ -113,6 +113,11 @@ inline constexpr double kNoBound = std::numeric_limits<double>::infinity();
        shadow of a lamp with a size (radius, sun angle) and the world's occlusion; up to 32 per element     \
        for the light the solve carries on. A hard-shadowed lamp (radius 0) always takes one ray. */         \
     X(int, lightRays, "light_rays", 256, '[', 1, 1024, ']')                                                 \
+    /* Lightmap texels where the light bends within a texel (a shadow's edge, a contact) take the mean over  \
+       their footprint as Blender 3.4's bake samples it (bake/lightmap.h), from this many points per side;    \
+       1, the default: every texel its centre. It helps where the light is exact per point (lamps, the       \
+       gather's own rays) and not where shadows come from the elements (the 100k office, docs/scaling.md). */ \
+    X(int, texelSamples, "texel_samples", 1, '[', 1, 16, ']')                                              \
     /* Which sample pattern the rays use (links' visibility, faces' shares, lamps' and the gather's points): \
        0 is the default pattern; another seed gives a bake that differs from it by sampling noise alone. */ \
     X(int, seed, "seed", 0, '[', 0, std::numeric_limits<int>::max(), ']')                                 \
