@@ -16,19 +16,22 @@ struct Sample {
     double b0 = 0, b1 = 0, b2 = 0;  // barycentric coordinates of the sampled point
 };
 
+// Barycentric coordinates of p in triangle (a, b, c) in 2D; true when p is on the triangle.
+bool barycentric(double px, double py, const double* a, const double* b, const double* c, double& u, double& v,
+                 double& w) {
+    double v0x = b[0] - a[0], v0y = b[1] - a[1], v1x = c[0] - a[0], v1y = c[1] - a[1];
+    double v2x = px - a[0], v2y = py - a[1];
+    double den = v0x * v1y - v1x * v0y;
+    v = (v2x * v1y - v1x * v2y) / den;
+    w = (v0x * v2y - v2x * v0y) / den;
+    u = 1 - v - w;
+    return u >= 0 && v >= 0 && w >= 0;
+}
+
 // Closest point of triangle (a, b, c) to p in 2D, as barycentric coordinates.
 void closestBarycentric(double px, double py, const double* a, const double* b, const double* c,
                         double& u, double& v, double& w) {
-    auto bary = [&](double qx, double qy, double& bu, double& bv, double& bw) {
-        double v0x = b[0] - a[0], v0y = b[1] - a[1], v1x = c[0] - a[0], v1y = c[1] - a[1];
-        double v2x = qx - a[0], v2y = qy - a[1];
-        double den = v0x * v1y - v1x * v0y;
-        bv = (v2x * v1y - v1x * v2y) / den;
-        bw = (v0x * v2y - v2x * v0y) / den;
-        bu = 1 - bv - bw;
-    };
-    bary(px, py, u, v, w);
-    if (u >= 0 && v >= 0 && w >= 0) return;
+    if (barycentric(px, py, a, b, c, u, v, w)) return;
     // Outside: the nearest point lies on one of the three edges.
     const double* P[3] = {a, b, c};
     double best = HUGE_VAL;
@@ -147,16 +150,8 @@ Rgb footprintMean(const RadianceField& field, const LightmapInput& in, const Rad
         uv[k][0] = double(in.uvs[size_t(tri) * 6 + size_t(k) * 2]) * in.width;
         uv[k][1] = double(in.uvs[size_t(tri) * 6 + size_t(k) * 2 + 1]) * in.height;
     }
-    const double e1x = uv[1][0] - uv[0][0], e1y = uv[1][1] - uv[0][1];
-    const double e2x = uv[2][0] - uv[0][0], e2y = uv[2][1] - uv[0][1];
-    const double den = e1x * e2y - e2x * e1y;
-    if (!(std::fabs(den) > 1e-12)) return none;
     auto bary = [&](double px, double py, double& u, double& v, double& w) {
-        const double qx = px - uv[0][0], qy = py - uv[0][1];
-        v = (qx * e2y - e2x * qy) / den;
-        w = (e1x * qy - qx * e1y) / den;
-        u = 1 - v - w;
-        return u >= 0 && v >= 0 && w >= 0;
+        return barycentric(px, py, uv[0], uv[1], uv[2], u, v, w);
     };
     const double cx = x + 0.5, cy = y + 0.5;
     double u, v, w;
